@@ -1,0 +1,1 @@
+int fogbeam_airlight_placeholder = 0;

@@ -1,0 +1,342 @@
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/profile.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace fogbeam {
+
+namespace {
+
+template <class... Ts>
+struct Overloaded : Ts... {
+  using Ts::operator()...;
+};
+
+constexpr double kTwoPi = 2.0 * kPi;
+constexpr double kHalfPi = 0.5 * kPi;
+
+double clampUnit(double x) { return std::clamp(x, -1.0, 1.0); }
+
+// Linear interpolation position of x in an ascending grid: index i and weight t with
+// x = (1 − t) g[i] + t g[i+1]. Returns false outside [g.front(), g.back()].
+bool locate(const std::vector<double>& g, double x, std::size_t& i, double& t) {
+  if (g.size() == 1) {
+    i = 0;
+    t = 0.0;
+    return std::abs(x - g[0]) < 1e-12;
+  }
+  constexpr double eps = 1e-12;  // accept values on the end points despite rounding
+  if (x < g.front() - eps || x > g.back() + eps) return false;
+  auto it = std::upper_bound(g.begin(), g.end(), x);
+  std::size_t hi = static_cast<std::size_t>(it - g.begin());
+  if (hi == 0) hi = 1;
+  if (hi >= g.size()) hi = g.size() - 1;
+  i = hi - 1;
+  const double span = g[hi] - g[i];
+  t = span > 0.0 ? std::clamp((x - g[i]) / span, 0.0, 1.0) : 0.0;
+  return true;
+}
+
+// Folds a type C plane angle C (radians, any value) into the range the data cover.
+double foldTypeC(double c, PlaneSymmetry sym) {
+  c = std::fmod(c, kTwoPi);
+  if (c < 0.0) c += kTwoPi;
+  switch (sym) {
+    case PlaneSymmetry::Quadrant:
+      if (c > kPi) c = kTwoPi - c;
+      if (c > kHalfPi) c = kPi - c;
+      return c;
+    case PlaneSymmetry::Half0To180:
+      return c > kPi ? kTwoPi - c : c;
+    case PlaneSymmetry::Half90To270:
+      if (c < kHalfPi) return kPi - c;            // mirror about the 90–270 plane
+      if (c > 1.5 * kPi) return 3.0 * kPi - c;
+      return c;
+    default:
+      return c;
+  }
+}
+
+// Great-circle crossings: w(θ) = cos θ n + sin θ t. Solutions of w·a = c (|a| = 1).
+void crossingsDot(const Vec3& n, const Vec3& t, const Vec3& a, double c, double lo, double hi,
+                  std::vector<double>& out) {
+  const double x = glm::dot(n, a), y = glm::dot(t, a);
+  const double r = std::hypot(x, y);
+  if (r < 1e-15 || std::abs(c) > r) return;
+  const double centre = std::atan2(y, x);
+  const double half = std::acos(clampUnit(c / r));
+  for (double base : {centre - half, centre + half}) {
+    for (int k = -2; k <= 2; ++k) {
+      const double th = base + k * kTwoPi;
+      if (th > lo && th < hi) out.push_back(th);
+    }
+  }
+}
+
+double sphereFlux(const Profile& p) {
+  // Midpoint rule in (ψ, φ) about +x; 0.05° rings resolve spot edges and tabulated grids
+  // of 0.1° and coarser to < 1e-5 relative.
+  constexpr int nPsi = 3600, nPhi = 720;
+  const double dPsi = kPi / nPsi, dPhi = kTwoPi / nPhi;
+  double sum = 0.0;
+  for (int i = 0; i < nPsi; ++i) {
+    const double psi = (i + 0.5) * dPsi;
+    const double s = std::sin(psi), c = std::cos(psi);
+    double ring = 0.0;
+    for (int j = 0; j < nPhi; ++j) {
+      const double phi = (j + 0.5) * dPhi;
+      ring += p.intensity(Vec3(c, s * std::cos(phi), s * std::sin(phi)));
+    }
+    sum += ring * s;
+  }
+  return sum * dPsi * dPhi;
+}
+
+double computeSupport(const Profile& p) {
+  return std::visit(
+      Overloaded{
+          [](const IsotropicProfile& m) { return m.intensity_cd > 0.0 ? kPi : 0.0; },
+          [](const SpotProfile& m) { return m.outer; },
+          [&](const TabulatedProfile&) {
+            // Sampled on 0.25° rings; one ring of margin covers features between samples
+            // (a grid finer than 0.25° is not expected in lamp data).
+            constexpr int nPsi = 720, nPhi = 1440;
+            int last = -1;
+            for (int i = 0; i < nPsi; ++i) {
+              const double psi = (i + 0.5) * kPi / nPsi;
+              const double s = std::sin(psi), c = std::cos(psi);
+              for (int j = 0; j < nPhi; ++j) {
+                const double phi = (j + 0.5) * kTwoPi / nPhi;
+                if (p.intensity(Vec3(c, s * std::cos(phi), s * std::sin(phi))) > 0.0) {
+                  last = i;
+                  break;
+                }
+              }
+            }
+            if (last < 0) return 0.0;
+            return std::min(kPi, (last + 2) * kPi / nPsi);
+          },
+      },
+      p.model());
+}
+
+}  // namespace
+
+FileAngles anglesFromDirection(PhotometricType type, const Vec3& w) noexcept {
+  switch (type) {
+    case PhotometricType::C:
+      return {std::atan2(w.z, w.y), std::acos(clampUnit(w.x))};
+    case PhotometricType::B:
+      return {std::asin(clampUnit(-w.y)), std::atan2(w.z, w.x)};
+    case PhotometricType::A:
+      return {std::atan2(-w.y, w.x), std::asin(clampUnit(w.z))};
+  }
+  return {0.0, 0.0};
+}
+
+Vec3 directionFromAngles(PhotometricType type, double h, double v) noexcept {
+  switch (type) {
+    case PhotometricType::C:
+      return {std::cos(v), std::sin(v) * std::cos(h), std::sin(v) * std::sin(h)};
+    case PhotometricType::B:
+      return {std::cos(h) * std::cos(v), -std::sin(h), std::cos(h) * std::sin(v)};
+    case PhotometricType::A:
+      return {std::cos(v) * std::cos(h), -std::cos(v) * std::sin(h), std::sin(v)};
+  }
+  return {1.0, 0.0, 0.0};
+}
+
+Status TabulatedProfile::validate() const {
+  const std::string where = source.empty() ? std::string("profile") : source;
+  if (horizontal.empty()) return Error{where + ": no horizontal angles"};
+  if (vertical.size() < 2) return Error{where + ": need at least 2 vertical angles"};
+  if (candela.size() != horizontal.size() * vertical.size()) {
+    return Error{where + ": expected " + std::to_string(horizontal.size() * vertical.size()) +
+                 " candela values, found " + std::to_string(candela.size())};
+  }
+  auto ascending = [](const std::vector<double>& g) {
+    for (std::size_t i = 1; i < g.size(); ++i)
+      if (!(g[i] > g[i - 1])) return false;
+    return true;
+  };
+  if (!ascending(horizontal)) return Error{where + ": horizontal angles must be strictly ascending"};
+  if (!ascending(vertical)) return Error{where + ": vertical angles must be strictly ascending"};
+  for (double a : horizontal)
+    if (!std::isfinite(a)) return Error{where + ": horizontal angle is not a finite number"};
+  for (double a : vertical)
+    if (!std::isfinite(a)) return Error{where + ": vertical angle is not a finite number"};
+  for (double c : candela)
+    if (!std::isfinite(c) || c < 0.0) return Error{where + ": candela values must be finite and >= 0"};
+  const double eps = 1e-9;
+  if (type == PhotometricType::C) {
+    if (vertical.front() < -eps || vertical.back() > kPi + eps)
+      return Error{where + ": type C vertical angles must lie in [0, 180] degrees"};
+    if (horizontal.front() < -eps || horizontal.back() > kTwoPi + eps)
+      return Error{where + ": type C horizontal angles must lie in [0, 360] degrees"};
+  } else {
+    if (vertical.front() < -kHalfPi - eps || vertical.back() > kHalfPi + eps)
+      return Error{where + ": type A/B vertical angles must lie in [-90, 90] degrees"};
+    const double hmax = type == PhotometricType::B ? kHalfPi : kPi;
+    if (horizontal.front() < -hmax - eps || horizontal.back() > hmax + eps)
+      return Error{where + ": type A/B horizontal angles out of range"};
+    if (symmetry == PlaneSymmetry::MirrorH && horizontal.front() < -eps)
+      return Error{where + ": mirrored type A/B data must start at H = 0"};
+  }
+  return Ok{};
+}
+
+double TabulatedProfile::atAngles(double h, double v) const noexcept {
+  std::size_t iv = 0;
+  double tv = 0.0;
+  if (!locate(vertical, v, iv, tv)) return 0.0;
+  const std::size_t nv = vertical.size();
+  const std::size_t iv1 = std::min(iv + 1, nv - 1);
+  auto row = [&](std::size_t ih) {
+    const double* r = candela.data() + ih * nv;
+    return (1.0 - tv) * r[iv] + tv * r[iv1];
+  };
+  if (horizontal.size() == 1 || symmetry == PlaneSymmetry::Rotational) return row(0);
+
+  if (type == PhotometricType::C) {
+    h = foldTypeC(h, symmetry);
+    if (symmetry == PlaneSymmetry::None && h > horizontal.back()) {
+      // Wrap between the last plane and the first one + 360°.
+      const double span = horizontal.front() + kTwoPi - horizontal.back();
+      if (span <= 0.0) return row(0);
+      const double t = (h - horizontal.back()) / span;
+      return (1.0 - t) * row(horizontal.size() - 1) + t * row(0);
+    }
+    if (symmetry == PlaneSymmetry::None && h < horizontal.front()) {
+      const double span = horizontal.front() + kTwoPi - horizontal.back();
+      if (span <= 0.0) return row(0);
+      const double t = (h + kTwoPi - horizontal.back()) / span;
+      return (1.0 - t) * row(horizontal.size() - 1) + t * row(0);
+    }
+  } else if (symmetry == PlaneSymmetry::MirrorH) {
+    h = std::abs(h);
+  }
+  std::size_t ih = 0;
+  double th = 0.0;
+  if (!locate(horizontal, h, ih, th)) return 0.0;
+  const std::size_t ih1 = std::min(ih + 1, horizontal.size() - 1);
+  return (1.0 - th) * row(ih) + th * row(ih1);
+}
+
+double Profile::intensity(const Vec3& w) const noexcept {
+  return std::visit(
+      Overloaded{
+          [](const IsotropicProfile& m) { return m.intensity_cd; },
+          [&](const SpotProfile& m) {
+            const double psi = std::acos(clampUnit(w.x));
+            if (psi <= m.inner) return m.peak_cd;
+            if (psi >= m.outer) return 0.0;
+            return m.peak_cd * (m.outer - psi) / (m.outer - m.inner);
+          },
+          [&](const TabulatedProfile& m) {
+            const FileAngles a = anglesFromDirection(m.type, w);
+            return m.atAngles(a.h, a.v);
+          },
+      },
+      model_);
+}
+
+double Profile::totalFlux() const { return sphereFlux(*this); }
+
+Profile::Peak Profile::peak() const {
+  return std::visit(
+      Overloaded{
+          [](const IsotropicProfile& m) { return Peak{m.intensity_cd, Vec3(1, 0, 0)}; },
+          [](const SpotProfile& m) { return Peak{m.peak_cd, Vec3(1, 0, 0)}; },
+          [](const TabulatedProfile& m) {
+            Peak best{0.0, Vec3(1, 0, 0)};
+            const std::size_t nv = m.vertical.size();
+            for (std::size_t ih = 0; ih < m.horizontal.size(); ++ih)
+              for (std::size_t iv = 0; iv < nv; ++iv)
+                if (m.candela[ih * nv + iv] > best.intensity_cd)
+                  best = {m.candela[ih * nv + iv], directionFromAngles(m.type, m.horizontal[ih], m.vertical[iv])};
+            return best;
+          },
+      },
+      model_);
+}
+
+void Profile::appendKinks(const Vec3& n, const Vec3& t, double lo, double hi, std::vector<double>& out) const {
+  const Vec3 ex(1, 0, 0), ey(0, 1, 0), ez(0, 0, 1);
+  std::visit(
+      Overloaded{
+          [](const IsotropicProfile&) {},
+          [&](const SpotProfile& m) {
+            crossingsDot(n, t, ex, std::cos(m.inner), lo, hi, out);
+            crossingsDot(n, t, ex, std::cos(m.outer), lo, hi, out);
+          },
+          [&](const TabulatedProfile& m) {
+            // Bilinear interpolation has kinks on every grid line; each family of lines is
+            // either cones about an axis (w·a = c) or planes through one (w·q = 0).
+            std::vector<double> hs = m.horizontal;
+            if (m.type == PhotometricType::C) {
+              if (m.symmetry != PlaneSymmetry::Rotational)
+                for (double h : m.horizontal) hs.push_back(-h);
+              hs.push_back(0.0);
+              hs.push_back(kHalfPi);
+              if (m.symmetry == PlaneSymmetry::Rotational) hs.clear();
+              for (double c : hs) crossingsDot(n, t, Vec3(0, std::sin(c), -std::cos(c)), 0.0, lo, hi, out);
+              for (double g : m.vertical) crossingsDot(n, t, ex, std::cos(g), lo, hi, out);
+            } else if (m.type == PhotometricType::B) {
+              for (double h : m.horizontal) {
+                crossingsDot(n, t, -ey, std::sin(h), lo, hi, out);
+                if (m.symmetry == PlaneSymmetry::MirrorH) crossingsDot(n, t, -ey, -std::sin(h), lo, hi, out);
+              }
+              for (double v : m.vertical) crossingsDot(n, t, Vec3(-std::sin(v), 0, std::cos(v)), 0.0, lo, hi, out);
+            } else {
+              for (double h : m.horizontal) {
+                crossingsDot(n, t, Vec3(-std::sin(h), -std::cos(h), 0), 0.0, lo, hi, out);
+                if (m.symmetry == PlaneSymmetry::MirrorH)
+                  crossingsDot(n, t, Vec3(std::sin(h), -std::cos(h), 0), 0.0, lo, hi, out);
+              }
+              for (double v : m.vertical) crossingsDot(n, t, ez, std::sin(v), lo, hi, out);
+            }
+            // The edges of the covered range are kinks too (the value drops to 0 there);
+            // they are grid lines, already included above.
+          },
+      },
+      model_);
+}
+
+Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
+  if (const auto* iso = std::get_if<IsotropicProfile>(&model)) {
+    if (!std::isfinite(iso->intensity_cd) || iso->intensity_cd < 0.0)
+      return Error{"isotropic profile: intensity_cd must be finite and >= 0"};
+  } else if (const auto* spot = std::get_if<SpotProfile>(&model)) {
+    if (!std::isfinite(spot->peak_cd) || spot->peak_cd < 0.0)
+      return Error{"spot profile: intensity_cd must be finite and >= 0"};
+    if (!(spot->inner >= 0.0 && spot->inner < spot->outer && spot->outer <= kPi))
+      return Error{"spot profile: need 0 <= inner_deg < outer_deg <= 180"};
+  } else if (const auto* tab = std::get_if<TabulatedProfile>(&model)) {
+    if (Status s = tab->validate(); !s) return s.error();
+  }
+  auto p = std::make_shared<Profile>(std::move(model));
+  p->support_ = computeSupport(*p);
+  return std::shared_ptr<const Profile>(std::move(p));
+}
+
+Result<std::shared_ptr<const Profile>> loadProfileFile(const std::string& path) {
+  std::string ext;
+  if (auto dot = path.find_last_of('.'); dot != std::string::npos) ext = path.substr(dot + 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  Result<TabulatedProfile> tab = Error{""};
+  if (ext == "ies") {
+    tab = parseIesFile(path);
+  } else if (ext == "ldt") {
+    tab = parseEulumdatFile(path);
+  } else if (ext == "csv") {
+    tab = parseCsvProfileFile(path);
+  } else {
+    return Error{path + ": unknown profile format '." + ext + "' (expected .ies, .ldt or .csv)"};
+  }
+  if (!tab) return tab.error();
+  return makeProfile(std::move(tab).value());
+}
+
+}  // namespace fogbeam

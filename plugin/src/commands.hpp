@@ -1,0 +1,12 @@
+// fogbeam — subcommand registration. Each add*Command() adds one subcommand to the app and
+// arranges for it to run when chosen; the command sets `exitCode` to its exit status.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace fogbeam::cli {
+
+void addValidateCommand(CLI::App& app, int& exitCode);
+void addProfileCommand(CLI::App& app, int& exitCode);
+
+}  // namespace fogbeam::cli
