@@ -1,0 +1,2 @@
+// placeholder: parametric lamp models (owned by the lamp generator work)
+#pragma once
