@@ -1,1 +1,351 @@
-int fogbeam_airlight_placeholder = 0;
+#include <fogbeam/physics/airlight.hpp>
+
+#include "airlight_tables.hpp"
+
+#include <boost/math/quadrature/gauss_kronrod.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <tuple>
+#include <vector>
+
+namespace fogbeam {
+
+struct AirlightEvaluator::Tables {
+  std::shared_ptr<const detail::GMomentTable> g;
+  std::shared_ptr<const detail::SeedCoefficients> seed;
+  std::shared_ptr<const detail::GreatCircleMoments> circles;
+};
+
+namespace {
+
+constexpr double kHalfPi = 0.5 * kPi;
+// Beyond this optical distance between eye and lamp the airlight is below e^{−700} of any
+// representable value: u + r ≥ |S − O| for every point of the ray (triangle inequality).
+constexpr double kMaxOpticalDistance = 700.0;
+
+double tanHalfAngleSum(double theta) {
+  // (1 + sin θ)/cos θ = tan(π/4 + θ/2): finite at θ = −π/2 (→ 0), +∞ at θ = +π/2.
+  return std::tan(0.25 * kPi + 0.5 * theta);
+}
+
+// ---- caches: tables are shared between evaluators with the same phase or profile ----------
+using PhaseKey = std::tuple<std::size_t, double, double, int, int, double>;
+PhaseKey phaseKey(const Phase& ph, int a, int b, double c) {
+  double p0 = 0.0;
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&ph)) p0 = hg->g;
+  if (const auto* fm = std::get_if<FogMiePhase>(&ph)) p0 = fm->diameter_um;
+  return {ph.index(), p0, 0.0, a, b, c};
+}
+
+// Caches tables by key. `owner` ties an entry to the object it was built from (a profile):
+// an entry whose owner has died is stale even if a new owner reuses the same address.
+template <class T, class Key>
+class TableCache {
+ public:
+  template <class Make>
+  std::shared_ptr<const T> get(const Key& key, Make&& make, double& buildSeconds,
+                               std::weak_ptr<const void> owner = {}) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (auto it = map_.find(key); it != map_.end()) {
+      const bool ownerAlive = !it->second.owner.owner_before(owner) && !owner.owner_before(it->second.owner);
+      if (auto sp = it->second.table.lock(); sp && ownerAlive) return sp;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    std::shared_ptr<const T> sp = make();
+    buildSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    map_[key] = Entry{sp, owner};
+    // Keep the most recent tables alive even when no evaluator holds them, so that building
+    // evaluators one after another for the same fog (validate, scene reloads) reuses them.
+    recent_.push_back(sp);
+    if (recent_.size() > kKeepRecent) recent_.erase(recent_.begin());
+    return sp;
+  }
+
+ private:
+  static constexpr std::size_t kKeepRecent = 8;
+  struct Entry {
+    std::weak_ptr<const T> table;
+    std::weak_ptr<const void> owner;
+  };
+  std::mutex mutex_;
+  std::map<Key, Entry> map_;
+  std::vector<std::shared_ptr<const T>> recent_;
+};
+
+TableCache<detail::GMomentTable, PhaseKey>& gCache() {
+  static TableCache<detail::GMomentTable, PhaseKey> c;
+  return c;
+}
+TableCache<detail::SeedCoefficients, PhaseKey>& seedCache() {
+  static TableCache<detail::SeedCoefficients, PhaseKey> c;
+  return c;
+}
+using ProfileKey = std::pair<const Profile*, double>;
+TableCache<detail::GreatCircleMoments, ProfileKey>& circleCache() {
+  static TableCache<detail::GreatCircleMoments, ProfileKey> c;
+  return c;
+}
+
+double forwardWidth(const Phase& phase) {
+  // Angular width (rad) of the forward peak of p, ≈ (1 − g) for HG; 0 = no peak.
+  double g = 0.0;
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&phase)) g = hg->g;
+  if (const auto* fm = std::get_if<FogMiePhase>(&phase)) g = std::max(fm->g_hg, fm->g_d);
+  return g > 0.05 ? 1.0 - g : 0.0;
+}
+
+}  // namespace
+
+std::string_view toString(AirlightMethod m) {
+  switch (m) {
+    case AirlightMethod::Reference: return "reference";
+    case AirlightMethod::Seed: return "seed";
+    case AirlightMethod::Accurate: return "accurate";
+  }
+  return "?";
+}
+
+Result<AirlightMethod> parseAirlightMethod(std::string_view s) {
+  if (s == "reference") return AirlightMethod::Reference;
+  if (s == "seed") return AirlightMethod::Seed;
+  if (s == "accurate") return AirlightMethod::Accurate;
+  return Error{"unknown airlight method '" + std::string(s) + "' (expected seed, accurate or reference)"};
+}
+
+RayLampGeometry rayLampGeometry(const Ray& ray, const Vec3& lampPosition) noexcept {
+  RayLampGeometry g{};
+  const Vec3& w = ray.direction;
+  g.p = glm::dot(lampPosition - ray.origin, w);
+  const Vec3 foot = ray.origin + g.p * w;
+  Vec3 v = foot - lampPosition;
+  g.h = glm::length(v);
+  if (g.h < 1e-9) {
+    // The ray passes through the lamp: any n ⟂ ω will do, the integral diverges like 1/h.
+    const Vec3 a = std::abs(w.x) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
+    v = glm::normalize(glm::cross(w, a)) * 1e-9;
+    g.h = 1e-9;
+  }
+  g.n = v / g.h;
+  g.theta0 = std::atan2(-g.p, g.h);
+  g.thetaD = std::isinf(ray.distance_m) ? kHalfPi : std::atan2(ray.distance_m - g.p, g.h);
+  return g;
+}
+
+double integrandG(const Phase& phase, double k, double theta) noexcept {
+  const double pf = evalPhase(phase, -std::sin(theta));
+  if (k == 0.0) return pf;
+  return std::exp(-k * tanHalfAngleSum(theta)) * pf;
+}
+
+Result<AirlightEvaluator> AirlightEvaluator::build(const Lamp& lamp, const Medium& medium, AirlightMethod method,
+                                                   const AirlightOptions& options) {
+  if (Status s = medium.validate(); !s) return s.error();
+  if (!lamp.profile) return Error{"lamp has no intensity profile"};
+  AirlightEvaluator e;
+  e.lamp_ = lamp;
+  e.medium_ = medium;
+  e.method_ = method;
+  e.options_ = options;
+  e.lampFromWorld_ = glm::transpose(lamp.worldFromLamp);
+  auto tables = std::make_shared<Tables>();
+  double seconds = 0.0;
+  if (method == AirlightMethod::Accurate) {
+    const PhaseKey key = phaseKey(medium.phase, options.g_table_theta, options.g_table_k, options.g_table_k_max);
+    tables->g = gCache().get(key, [&] {
+      return std::make_shared<const detail::GMomentTable>(medium.phase, options.g_table_theta, options.g_table_k,
+                                                          options.g_table_k_max);
+    }, seconds);
+    e.stats_.bytes += tables->g->bytes();
+  } else if (method == AirlightMethod::Seed) {
+    const PhaseKey key = phaseKey(medium.phase, options.seed_k_nodes, 0, options.g_table_k_max);
+    tables->seed = seedCache().get(key, [&] {
+      return std::make_shared<const detail::SeedCoefficients>(medium.phase, options.seed_k_nodes, options.g_table_k_max);
+    }, seconds);
+    e.stats_.bytes += tables->seed->bytes();
+    if (!std::holds_alternative<IsotropicProfile>(lamp.profile->model())) {
+      tables->circles = circleCache().get(ProfileKey{lamp.profile.get(), options.seed_circle_step_deg}, [&] {
+        return std::make_shared<const detail::GreatCircleMoments>(*lamp.profile, options.seed_circle_step_deg);
+      }, seconds, std::weak_ptr<const void>(lamp.profile));
+      e.stats_.bytes += tables->circles->bytes();
+    }
+  }
+  e.stats_.build_seconds = seconds;
+  e.tables_ = std::move(tables);
+  return e;
+}
+
+namespace {
+
+struct Context {
+  const Profile& profile;
+  const Phase& phase;
+  double kt, k, p;
+  Vec3 n, t;  // lamp frame
+  double intensity(double theta) const noexcept {
+    return profile.intensity(std::cos(theta) * n + std::sin(theta) * t);
+  }
+};
+
+// ∫ e^{−K_t p} G(k, θ) I(w(θ)) dθ by adaptive Gauss–Kronrod on each kink-free piece.
+// e^{−K_t p} is folded into the exponent (K_t (p + h s(θ)) = K_t (u + r) ≥ 0) so that it
+// cannot overflow for lamps far behind the eye.
+double referenceIntegral(const Context& c, double th0, double thD, double relTol) {
+  std::vector<double> bp{th0, thD};
+  c.profile.appendKinks(c.n, c.t, th0, thD, bp);
+  if (const double w = forwardWidth(c.phase); w > 0.0) {
+    for (double f : {0.25, 0.5, 1.0, 2.0, 4.0}) {
+      const double th = -kHalfPi + f * w;
+      if (th > th0 && th < thD) bp.push_back(th);
+    }
+  }
+  std::sort(bp.begin(), bp.end());
+  auto f = [&](double th) {
+    const double s = tanHalfAngleSum(th);
+    const double expo = c.k == 0.0 ? c.kt * c.p : c.kt * c.p + c.k * s;
+    if (!std::isfinite(expo)) return 0.0;
+    return std::exp(-expo) * evalPhase(c.phase, -std::sin(th)) * c.intensity(th);
+  };
+  double sum = 0.0;
+  for (std::size_t i = 1; i < bp.size(); ++i) {
+    const double a = bp[i - 1], b = bp[i];
+    if (b - a < 1e-13) continue;
+    double err = 0.0;
+    sum += boost::math::quadrature::gauss_kronrod<double, 31>::integrate(f, a, b, 25, relTol, &err);
+  }
+  return sum;
+}
+
+// Accurate method: product integration. I is replaced by its piecewise quadratic interpolant
+// through samples at the ends and middle of each piece; G is integrated exactly against it
+// through the tabulated cumulative moments T_q(k, θ) (so the forward phase peak and the
+// exponential are never sampled). Pieces start at the profile's own breakpoints.
+double accurateIntegral(const Context& c, const detail::GMomentTable& g, double th0, double thD,
+                        const AirlightOptions& opt) {
+  const auto& model = c.profile.model();
+  if (const auto* iso = std::get_if<IsotropicProfile>(&model)) {
+    const auto ta = g.cumulative(c.k, th0), tb = g.cumulative(c.k, thD);
+    return iso->intensity_cd * (tb[0] - ta[0]);
+  }
+  std::vector<double> bp{th0, thD};
+  bp.reserve(16);
+  int piecesPerUnit = 0;
+  if (std::holds_alternative<SpotProfile>(model)) {
+    c.profile.appendKinks(c.n, c.t, th0, thD, bp);
+  } else {
+    // Clip to the profile's support cone: outside it I = 0.
+    const double sup = c.profile.supportHalfAngle();
+    if (sup < kPi) {
+      const double x = c.n.x, y = c.t.x, r = std::hypot(x, y);
+      const double cs = std::cos(sup);
+      if (r > 1e-15 && std::abs(cs) <= r) {
+        const double centre = std::atan2(y, x), half = std::acos(cs / r);
+        for (double base : {centre - half, centre + half})
+          for (int kk = -1; kk <= 1; ++kk) {
+            const double th = base + kk * 2.0 * kPi;
+            if (th > th0 && th < thD) bp.push_back(th);
+          }
+      }
+    }
+    piecesPerUnit = 1;
+  }
+  std::sort(bp.begin(), bp.end());
+
+  // Length of the intervals where I is not identically zero (for tabulated pieces).
+  std::vector<char> live(bp.size(), 0);
+  double liveLength = 0.0;
+  for (std::size_t i = 1; i < bp.size(); ++i) {
+    const double a = bp[i - 1], b = bp[i];
+    if (b - a < 1e-13) continue;
+    const double mid = 0.5 * (a + b);
+    bool any = c.intensity(mid) > 0.0 || c.intensity(a + 1e-9 * (b - a)) > 0.0 || c.intensity(b - 1e-9 * (b - a)) > 0.0;
+    if (!any && piecesPerUnit == 0) continue;  // spot: between kinks I is 0, constant or a ramp
+    if (!any) {
+      // Tabulated: the interval lies outside the support cone only if its midpoint does.
+      const Vec3 w = std::cos(mid) * c.n + std::sin(mid) * c.t;
+      if (std::acos(std::clamp(w.x, -1.0, 1.0)) > c.profile.supportHalfAngle()) continue;
+    }
+    live[i] = 1;
+    liveLength += b - a;
+  }
+
+  double sum = 0.0;
+  for (std::size_t i = 1; i < bp.size(); ++i) {
+    if (!live[i]) continue;
+    const double a = bp[i - 1], b = bp[i];
+    int pieces = 1;
+    if (piecesPerUnit == 0) {
+      const double ia = c.intensity(a + 1e-12), im = c.intensity(0.5 * (a + b)), ib = c.intensity(b - 1e-12);
+      const bool constant = ia == im && im == ib;
+      pieces = constant ? 1 : opt.accurate_spot_segments;
+    } else {
+      pieces = std::max(1, static_cast<int>(std::lround(opt.accurate_segments * (b - a) / liveLength)));
+    }
+    const double width = (b - a) / pieces;
+    auto tPrev = g.cumulative(c.k, a);
+    // End samples just inside the interval: at a kink I is continuous for spot edges, but
+    // tabulated data may drop to 0 at the edge of the covered range.
+    double iPrev = c.intensity(a + 1e-12 * (b - a));
+    for (int s = 0; s < pieces; ++s) {
+      const double pa = a + s * width, pb = (s + 1 == pieces) ? b : pa + width;
+      const double pm = 0.5 * (pa + pb), hw = 0.5 * (pb - pa);
+      const auto tNext = g.cumulative(c.k, pb);
+      const double im = c.intensity(pm);
+      const double iNext = c.intensity(pb - ((s + 1 == pieces) ? 1e-12 * (b - a) : 0.0));
+      const double d0 = tNext[0] - tPrev[0], d1 = tNext[1] - tPrev[1], d2 = tNext[2] - tPrev[2];
+      // Moments about the piece centre: ∫ G (θ − pm)^q dθ.
+      const double m0 = d0, m1 = d1 - pm * d0, m2 = d2 - 2 * pm * d1 + pm * pm * d0;
+      if (hw < 1e-9) {
+        sum += im * m0;
+      } else {
+        // Lagrange quadratic through (pa, iPrev), (pm, im), (pb, iNext) in x = θ − pm.
+        const double c1 = (iNext - iPrev) / (2 * hw);
+        const double c2 = (iPrev - 2 * im + iNext) / (2 * hw * hw);
+        sum += im * m0 + c1 * m1 + c2 * m2;
+      }
+      tPrev = tNext;
+      iPrev = iNext;
+    }
+  }
+  return sum;
+}
+
+}  // namespace
+
+double AirlightEvaluator::evaluate(const Ray& ray) const noexcept {
+  const double kt = medium_.extinction_per_m;
+  if (kt * glm::length(lamp_.position_m - ray.origin) > kMaxOpticalDistance) return 0.0;
+  const RayLampGeometry geo = rayLampGeometry(ray, lamp_.position_m);
+  if (!(geo.thetaD > geo.theta0)) return 0.0;
+  const Context c{*lamp_.profile, medium_.phase, kt, kt * geo.h, geo.p,
+                  lampFromWorld_ * geo.n, lampFromWorld_ * ray.direction};
+  const double scale = medium_.albedo * kt / geo.h;
+  switch (method_) {
+    case AirlightMethod::Reference:
+      return scale * referenceIntegral(c, geo.theta0, geo.thetaD, options_.reference_rel_tol);
+    case AirlightMethod::Accurate: {
+      if (c.k > tables_->g->kMax())  // beyond the table: rare (h > k_max / K_t), integrate directly
+        return scale * referenceIntegral(c, geo.theta0, geo.thetaD, 1e-6);
+      return scale * std::exp(-kt * geo.p) * accurateIntegral(c, *tables_->g, geo.theta0, geo.thetaD, options_);
+    }
+    case AirlightMethod::Seed: {
+      // Lecocq et al. 2001, eq. (4).
+      const auto cc = tables_->seed->at(c.k);
+      std::array<double, 3> m{};
+      if (const auto* iso = std::get_if<IsotropicProfile>(&c.profile.model())) {
+        const double a = geo.theta0, b = geo.thetaD;
+        m = {iso->intensity_cd * (b - a), iso->intensity_cd * (b * b - a * a) / 2,
+             iso->intensity_cd * (b * b * b - a * a * a) / 3};
+      } else {
+        m = tables_->circles->moments(c.n, c.t, geo.theta0, geo.thetaD);
+      }
+      return scale * std::exp(-kt * geo.p) * (cc[0] * m[0] + cc[1] * m[1] + cc[2] * m[2]);
+    }
+  }
+  return 0.0;
+}
+
+}  // namespace fogbeam

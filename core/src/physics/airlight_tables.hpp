@@ -1,0 +1,83 @@
+// fogbeam — precomputed tables behind the Seed and Accurate airlight methods (private).
+//
+// Two kinds, both built once and shared through shared_ptr:
+//  * GMomentTable (per phase function): cumulative moments of G(k, θ) of eq. (3),
+//        T_q(k, θ) = ∫_{−π/2}^{θ} θ'^q G(k, θ') dθ',  q = 0, 1, 2,
+//    on a (k, θ) grid. G depends on the phase function only (not on K_t or Ω), so one
+//    table serves every lamp in a given fog. Used by Accurate (exact phase peak) and, for
+//    its Taylor coefficients c_q(k), by Seed.
+//  * Great-circle tables (per profile): cumulative moments of I along great circles of
+//    the lamp's direction sphere, the seed's "precomputed tables" (Lecocq et al. 2001).
+#pragma once
+
+#include <fogbeam/physics/airlight.hpp>
+
+#include <array>
+#include <memory>
+#include <vector>
+
+namespace fogbeam::detail {
+
+/// Cumulative G moments, cubic Hermite in θ (dT_q/dθ = θ^q G is stored too) and
+/// Catmull-Rom in the k coordinate u = log1p(k/k0)/log1p(kmax/k0).
+class GMomentTable {
+ public:
+  GMomentTable(const Phase& phase, int nTheta, int nK, double kMax);
+
+  /// T_0, T_1, T_2 at (k, θ); k ∈ [0, kMax], θ ∈ [−π/2, π/2].
+  [[nodiscard]] std::array<double, 3> cumulative(double k, double theta) const noexcept;
+  [[nodiscard]] double kMax() const noexcept { return kMax_; }
+  [[nodiscard]] std::size_t bytes() const noexcept { return data_.size() * sizeof(double); }
+
+ private:
+  struct KWeights {
+    int row[4];
+    double w[4];
+  };
+  [[nodiscard]] KWeights kWeights(double k) const noexcept;
+  [[nodiscard]] double thetaAt(int j) const noexcept;
+
+  int nTheta_, nK_;
+  double kMax_, k0_, logSpan_;
+  std::vector<double> theta_;  // grid nodes
+  // data_[(i * nTheta + j) * 4 + {0,1,2,3}] = T0, T1, T2, G at (k_i, θ_j)
+  std::vector<double> data_;
+};
+
+/// Seed: Taylor coefficients c0, c1, c2 of G(k, θ) at θ = 0, tabulated in k (linear).
+class SeedCoefficients {
+ public:
+  SeedCoefficients(const Phase& phase, int nK, double kMax);
+  [[nodiscard]] std::array<double, 3> at(double k) const noexcept;
+  [[nodiscard]] std::size_t bytes() const noexcept { return c_.size() * sizeof(double); }
+
+ private:
+  int nK_;
+  double kMax_;
+  std::vector<double> c_;  // 3 per node
+};
+
+/// Moments ∫ θ^q I(w(θ)) dθ, q = 0..2, over [θ0, θd] along the circle w(θ) = cosθ n + sinθ t
+/// (lamp frame), from cumulative tables. Symmetric profiles (spot) use a 2D table over the
+/// circle's closest approach to the axis; general profiles a 3D table over plane orientation.
+class GreatCircleMoments {
+ public:
+  GreatCircleMoments(const Profile& profile, double stepDeg);
+  [[nodiscard]] std::array<double, 3> moments(const Vec3& n, const Vec3& t, double theta0,
+                                              double thetaD) const noexcept;
+  [[nodiscard]] std::size_t bytes() const noexcept { return data_.size() * sizeof(double); }
+
+ private:
+  // Moments ∫_a^b (φ − β)^q I dφ from the cumulative row `row` (φ ∈ [−π, π]), handling
+  // ranges that leave [−π, π] by periodic wrap.
+  [[nodiscard]] std::array<double, 3> rowMoments(const double* row, double a, double b, double beta) const noexcept;
+  [[nodiscard]] std::array<double, 3> rowMomentsInside(const double* row, double a, double b, double beta) const noexcept;
+
+  bool symmetric_ = false;
+  int nPhi_ = 0;       // along-circle nodes (cells + 1) over [−π, π]
+  int nA_ = 0, nB_ = 0;  // symmetric: nA_ = δ nodes; general: nA_ = ϑ nodes, nB_ = ϕ nodes
+  double step_ = 0.0;  // radians
+  std::vector<double> data_;  // rows of nPhi_ × 3 cumulative values
+};
+
+}  // namespace fogbeam::detail
