@@ -32,7 +32,7 @@ namespace fogbeam {
 
 namespace {
 
-using text::quoted;
+using text::quote;
 
 constexpr std::size_t kMaxColumns = 100'000;
 constexpr std::size_t kMaxValues = 4'000'000;
@@ -117,7 +117,7 @@ class CsvReader {
     } else if (value == "none") {
       mirror_ = false;
     } else {
-      return fileError(name_, number, "expected 'mirror-h' or 'none' after '# symmetry:', found " + quoted(value));
+      return fileError(name_, number, "expected 'mirror-h' or 'none' after '# symmetry:', found " + quote(value));
     }
     return Ok{};
   }
@@ -129,10 +129,10 @@ class CsvReader {
     Result<double> a = text::finiteNumber(cell, name_, number, where, decimalComma_);
     if (!a) return a;
     if (*a < -90.0 || *a > 90.0)
-      return fileError(name_, number, "expected " + where + " from -90 to 90 degrees, found " + quoted(cell));
+      return fileError(name_, number, "expected " + where + " from -90 to 90 degrees, found " + quote(cell));
     if (!previous.empty() && !(*a > previous.back()))
       return fileError(name_, number,
-                       "expected " + std::string(axis) + " angles in ascending order, found " + quoted(cell) +
+                       "expected " + std::string(axis) + " angles in ascending order, found " + quote(cell) +
                            " after " + text::formatNumber(previous.back()));
     return a;
   }
@@ -171,7 +171,7 @@ class CsvReader {
       const std::string what = "a candela value in column " + std::to_string(i + 1);
       Result<double> cd = text::finiteNumber(cells[i], name_, number, what, decimalComma_);
       if (!cd) return cd.error();
-      if (*cd < 0.0) return fileError(name_, number, "expected " + what + " >= 0, found " + quoted(cells[i]));
+      if (*cd < 0.0) return fileError(name_, number, "expected " + what + " >= 0, found " + quote(cells[i]));
       rows_.push_back(*cd);
     }
     v_.push_back(*v);

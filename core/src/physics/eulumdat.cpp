@@ -46,7 +46,7 @@ namespace fogbeam {
 
 namespace {
 
-using text::quoted;
+using text::quote;
 
 constexpr int kMaxPlanes = 3600;       // Mc: 0.1° steps over the circle
 constexpr int kMaxGammaAngles = 3601;  // Ng: 0.05° steps over 180°
@@ -92,7 +92,7 @@ class LineCursor {
 
   // An error about the field read last: "expected <expected>, found '<its text>'".
   Error atLast(const std::string& expected) const {
-    return fileError(name_, line(), "expected " + expected + ", found " + quoted(text::trim(lines_[i_ - 1].text)));
+    return fileError(name_, line(), "expected " + expected + ", found " + quote(text::trim(lines_[i_ - 1].text)));
   }
 
   Status expectEnd(const std::string& after) {
@@ -100,7 +100,7 @@ class LineCursor {
       const std::string_view rest = text::trim(lines_[i_].text);
       if (!rest.empty())
         return fileError(name_, lines_[i_].number,
-                         "expected the end of the file after " + after + ", found " + quoted(rest));
+                         "expected the end of the file after " + after + ", found " + quote(rest));
     }
     return Ok{};
   }

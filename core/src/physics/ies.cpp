@@ -56,7 +56,7 @@ namespace fogbeam {
 
 namespace {
 
-using text::quoted;
+using text::quote;
 
 enum class IesVersion { Lm63_1986, Lm63_1991, Lm63_1995, Lm63_2002, Lm63_2019 };
 
@@ -170,7 +170,7 @@ class NumberReader {
 
   // The token read last, for errors about its value ("expected … >= 0, found '-3'").
   Error atLast(const std::string& expected) const {
-    return fileError(file_, last_.line, "expected " + expected + ", found " + quoted(last_.text));
+    return fileError(file_, last_.line, "expected " + expected + ", found " + quote(last_.text));
   }
   std::size_t lastLine() const noexcept { return last_.line; }
 
@@ -178,7 +178,8 @@ class NumberReader {
   Status expectEnd(const std::string& after, const std::string& hint) {
     const std::optional<Token> t = next();
     if (!t) return Ok{};
-    return fileError(file_, t->line, "expected the end of the file after " + after + ", found " + quoted(t->text) + hint);
+    return fileError(file_, t->line,
+                     "expected the end of the file after " + after + ", found " + quote(t->text) + hint);
   }
 
  private:
@@ -203,14 +204,16 @@ struct IesHeader {
   std::size_t dataOffset = 0;  // where the line after it starts in the text
 };
 
-const char* const kTiltExpectation = "a TILT= line (TILT=NONE, TILT=INCLUDE or TILT=<file>)";
+std::string expectedTilt(const std::string& found) {
+  return "expected a TILT= line (TILT=NONE, TILT=INCLUDE or TILT=<file>)" + found;
+}
 
 // LM-63-1991 and later open with a header line; LM-63-1986 files start with label text.
 bool looksLikeVersionLine(std::string_view line) {
   return line.substr(0, 5) == "IESNA" || line.substr(0, 4) == "IES:";
 }
 
-Result<IesVersion> versionFromHeader(std::string_view line, const std::string& name) {
+Result<IesVersion> versionFromHeader(std::string_view line, std::size_t number, const std::string& name) {
   struct Known {
     std::string_view text;
     IesVersion version;
@@ -222,9 +225,9 @@ Result<IesVersion> versionFromHeader(std::string_view line, const std::string& n
   };
   for (const Known& k : kKnown)
     if (line == k.text) return k.version;
-  return fileError(name, 1,
+  return fileError(name, number,
                    "expected an LM-63 header line (IESNA91, IESNA:LM-63-1995, IESNA:LM-63-2002 or IES:LM-63-2019), "
-                   "found " + quoted(line));
+                   "found " + quote(line));
 }
 
 // The value of a "TILT=…" line, or nullopt when the line is something else.
@@ -260,7 +263,7 @@ Status addKeywordLine(std::string_view line, std::size_t number, const std::stri
   }
   const std::size_t close = line.find(']');
   if (close == std::string_view::npos)
-    return fileError(name, number, "expected a keyword line '[KEYWORD] value', found " + quoted(line));
+    return fileError(name, number, "expected a keyword line '[KEYWORD] value', found " + quote(line));
   std::string key(text::trim(line.substr(1, close - 1)));
   std::string value(text::trim(line.substr(close + 1)));
   if (key == "MORE" && !keywords.empty()) {
@@ -275,17 +278,19 @@ Status addKeywordLine(std::string_view line, std::size_t number, const std::stri
 
 Result<IesHeader> readHeader(const std::vector<text::Line>& lines, const std::string& name) {
   IesHeader header;
+  // The header line is the first non-blank line (the caller made sure there is one).
   std::size_t i = 0;
-  if (const std::string_view first = text::trim(lines[0].text); looksLikeVersionLine(first)) {
-    Result<IesVersion> version = versionFromHeader(first, name);
+  while (text::trim(lines[i].text).empty()) ++i;
+  if (const std::string_view first = text::trim(lines[i].text); looksLikeVersionLine(first)) {
+    Result<IesVersion> version = versionFromHeader(first, lines[i].number, name);
     if (!version) return version.error();
     header.version = *version;
-    i = 1;
+    ++i;
   }
   for (; i < lines.size(); ++i) {
     const std::string_view line = text::trim(lines[i].text);
     if (const std::optional<std::string_view> tilt = tiltValue(line)) {
-      if (tilt->empty()) return fileError(name, lines[i].number, std::string("expected ") + kTiltExpectation + ", found " + quoted(line));
+      if (tilt->empty()) return fileError(name, lines[i].number, expectedTilt(", found " + quote(line)));
       header.tilt = std::string(*tilt);
       header.tiltLine = lines[i].number;
       header.dataOffset = lines[i].next;
@@ -293,11 +298,10 @@ Result<IesHeader> readHeader(const std::vector<text::Line>& lines, const std::st
     }
     if (line.empty()) continue;
     if (looksLikeNumbers(line))
-      return fileError(name, lines[i].number,
-                       std::string("expected ") + kTiltExpectation + " before the photometric data, found " + quoted(line));
+      return fileError(name, lines[i].number, expectedTilt(" before the photometric data, found " + quote(line)));
     if (Status s = addKeywordLine(line, lines[i].number, name, header.keywords); !s) return s.error();
   }
-  return fileError(name, lines.back().number, std::string("expected ") + kTiltExpectation + ", found the end of the file");
+  return fileError(name, lines.back().number, expectedTilt(", found the end of the file"));
 }
 
 // ---------------------------------------------------------------------------------------
@@ -326,8 +330,8 @@ Result<double> readTiltData(NumberReader& in) {
   Result<int> geometry = in.integer("the TILT lamp-to-luminaire geometry", 1, 3);
   if (!geometry) return geometry.error();
   if (*geometry != 1)
-    return in.atLast("TILT lamp-to-luminaire geometry 1 (vertical lamp), the only one fogbeam applies; geometries 2 "
-                     "and 3 (horizontal lamp) depend on the tilt plane");
+    return in.atLast("TILT lamp-to-luminaire geometry 1 (vertical lamp; geometries 2 and 3, horizontal lamps, are "
+                     "not supported)");
   Result<int> count = in.integer("the number of TILT angles", 1, kMaxTiltAngles);
   if (!count) return count.error();
   const auto n = static_cast<std::size_t>(*count);
@@ -358,7 +362,8 @@ Result<double> tiltFactor(const IesHeader& header, NumberReader& data, const std
                      "TILT=" + header.tilt + " names a tilt file, but no tilt file loader was given (use parseIesFile)");
   Result<std::string> tiltText = loader(header.tilt);
   if (!tiltText)
-    return fileError(name, header.tiltLine, "cannot read TILT file " + quoted(header.tilt) + ": " + tiltText.error().message);
+    return fileError(name, header.tiltLine,
+                     "cannot read TILT file " + quote(header.tilt) + ": " + tiltText.error().message);
   NumberReader tiltData(*tiltText, 1, header.tilt);
   Result<double> factor = readTiltData(tiltData);
   if (!factor) return factor;
@@ -477,7 +482,7 @@ Status checkVerticalRange(const AngleList& v, PhotometricType type, const std::s
                        rangeText(v));
 }
 
-// The horizontal range fixes the symmetry (LM-63-2002 §"horizontal angles").
+// The horizontal range fixes the symmetry (the layouts LM-63 allows; see the file comment).
 Result<PlaneSymmetry> horizontalSymmetry(const AngleList& h, PhotometricType type, const std::string& name) {
   const double first = h.deg.front(), last = h.deg.back();
   using text::sameAngle;
@@ -563,7 +568,8 @@ bool isBlankText(const std::vector<text::Line>& lines) {
 Result<TabulatedProfile> parseIes(std::string_view text, const std::string& name, const IesTiltLoader& tiltLoader) {
   const std::vector<text::Line> lines = text::splitLines(text);
   if (isBlankText(lines))
-    return fileError(name, 1, "expected an IES LM-63 file (header, keywords, TILT=, photometric data), found an empty file");
+    return fileError(name, 1,
+                     "expected an IES LM-63 file (header, keywords, TILT=, photometric data), found an empty file");
   Result<IesHeader> header = readHeader(lines, name);
   if (!header) return header.error();
   NumberReader data(text.substr(header->dataOffset), header->tiltLine + 1, name);

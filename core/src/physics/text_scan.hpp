@@ -59,7 +59,7 @@ struct Line {
 }
 
 /// A token as shown in messages: quoted and cut to 40 characters.
-[[nodiscard]] inline std::string quoted(std::string_view token) {
+[[nodiscard]] inline std::string quote(std::string_view token) {
   constexpr std::size_t kMax = 40;
   if (token.size() > kMax) return "'" + std::string(token.substr(0, kMax)) + "...'";
   return "'" + std::string(token) + "'";
@@ -99,8 +99,8 @@ struct Line {
 [[nodiscard]] inline Result<double> finiteNumber(std::string_view token, const std::string& file, std::size_t line,
                                                  const std::string& what, bool decimalComma = false) {
   const std::optional<double> v = parseNumber(token, decimalComma);
-  if (!v) return fileError(file, line, "expected " + what + " (a number), found " + quoted(token));
-  if (!std::isfinite(*v)) return fileError(file, line, "expected " + what + " (a finite number), found " + quoted(token));
+  if (!v) return fileError(file, line, "expected " + what + " (a number), found " + quote(token));
+  if (!std::isfinite(*v)) return fileError(file, line, "expected " + what + " (a finite number), found " + quote(token));
   return *v;
 }
 
@@ -111,7 +111,7 @@ struct Line {
   if (!v || !std::isfinite(*v) || std::floor(*v) != *v || *v < lo || *v > hi) {
     return fileError(file, line,
                      "expected " + what + " (an integer from " + std::to_string(lo) + " to " + std::to_string(hi) +
-                         "), found " + quoted(token));
+                         "), found " + quote(token));
   }
   return static_cast<int>(*v);
 }
