@@ -209,12 +209,25 @@ double referenceIntegral(const Context& c, double th0, double thD, double relTol
     if (!std::isfinite(expo)) return 0.0;
     return std::exp(-expo) * evalPhase(c.phase, -std::sin(th)) * c.intensity(th);
   };
+  // Two passes: a 31-point estimate of every piece gives the integral's scale, then each piece
+  // is refined to an absolute tolerance relTol × |total| (a piece-relative tolerance would
+  // chase rounding noise on negligible pieces, e.g. near θ → π/2 where e^{−k s} underflows).
+  using GK = boost::math::quadrature::gauss_kronrod<double, 31>;
+  std::vector<double> l1(bp.size(), 0.0);
+  double total = 0.0;
+  for (std::size_t i = 1; i < bp.size(); ++i) {
+    if (bp[i] - bp[i - 1] < 1e-13) continue;
+    double err = 0.0;
+    GK::integrate(f, bp[i - 1], bp[i], 0, 0.0, &err, &l1[i]);
+    total += l1[i];
+  }
+  if (!(total > 0.0)) return 0.0;
   double sum = 0.0;
   for (std::size_t i = 1; i < bp.size(); ++i) {
-    const double a = bp[i - 1], b = bp[i];
-    if (b - a < 1e-13) continue;
+    if (bp[i] - bp[i - 1] < 1e-13 || l1[i] == 0.0) continue;
+    const double tol = std::min(0.1, relTol * total / l1[i]);
     double err = 0.0;
-    sum += boost::math::quadrature::gauss_kronrod<double, 31>::integrate(f, a, b, 25, relTol, &err);
+    sum += GK::integrate(f, bp[i - 1], bp[i], 20, tol, &err);
   }
   return sum;
 }
@@ -250,6 +263,7 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
           }
       }
     }
+    c.profile.appendFeatureKinks(c.n, c.t, th0, thD, bp);
     piecesPerUnit = 1;
   }
   std::sort(bp.begin(), bp.end());

@@ -122,6 +122,29 @@ double computeSupport(const Profile& p) {
       p.model());
 }
 
+// Grid lines of a tabulated profile: families of cones (w·a = c) or planes through an axis
+// (w·q = 0), as in appendKinks. Returns the line for the i-th horizontal or vertical angle.
+struct GridLine {
+  Vec3 axis;
+  double c;
+};
+GridLine horizontalLine(PhotometricType type, double h) {
+  switch (type) {
+    case PhotometricType::C: return {Vec3(0, std::sin(h), -std::cos(h)), 0.0};
+    case PhotometricType::B: return {Vec3(0, -1, 0), std::sin(h)};
+    case PhotometricType::A: return {Vec3(-std::sin(h), -std::cos(h), 0), 0.0};
+  }
+  return {Vec3(1, 0, 0), 1.0};
+}
+GridLine verticalLine(PhotometricType type, double v) {
+  switch (type) {
+    case PhotometricType::C: return {Vec3(1, 0, 0), std::cos(v)};
+    case PhotometricType::B: return {Vec3(-std::sin(v), 0, std::cos(v)), 0.0};
+    case PhotometricType::A: return {Vec3(0, 0, 1), std::sin(v)};
+  }
+  return {Vec3(1, 0, 0), 1.0};
+}
+
 }  // namespace
 
 FileAngles anglesFromDirection(PhotometricType type, const Vec3& w) noexcept {
@@ -304,6 +327,14 @@ void Profile::appendKinks(const Vec3& n, const Vec3& t, double lo, double hi, st
       model_);
 }
 
+void Profile::appendFeatureKinks(const Vec3& n, const Vec3& t, double lo, double hi, std::vector<double>& out) const {
+  if (!std::holds_alternative<TabulatedProfile>(model_)) {
+    appendKinks(n, t, lo, hi, out);
+    return;
+  }
+  for (const Line& l : features_) crossingsDot(n, t, l.axis, l.c, lo, hi, out);
+}
+
 Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
   if (const auto* iso = std::get_if<IsotropicProfile>(&model)) {
     if (!std::isfinite(iso->intensity_cd) || iso->intensity_cd < 0.0)
@@ -318,6 +349,41 @@ Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
   }
   auto p = std::make_shared<Profile>(std::move(model));
   p->support_ = computeSupport(*p);
+  if (const auto* t = std::get_if<TabulatedProfile>(&p->model_)) {
+    // Feature lines: where the slope of I across a grid line changes by more than 1 % of the
+    // peak per grid step (largest second difference over the other angle). Mirrored copies
+    // are added for symmetric data.
+    const std::size_t nh = t->horizontal.size(), nv = t->vertical.size();
+    double peakCd = 0.0;
+    for (double c : t->candela) peakCd = std::max(peakCd, c);
+    const double threshold = 0.01 * peakCd;
+    auto at = [&](std::size_t ih, std::size_t iv) { return t->candela[ih * nv + iv]; };
+    std::vector<std::pair<double, GridLine>> cand;
+    for (std::size_t iv = 1; iv + 1 < nv; ++iv) {
+      double s2 = 0.0;
+      for (std::size_t ih = 0; ih < nh; ++ih)
+        s2 = std::max(s2, std::abs(at(ih, iv + 1) - 2 * at(ih, iv) + at(ih, iv - 1)));
+      if (s2 > threshold) cand.emplace_back(s2, verticalLine(t->type, t->vertical[iv]));
+    }
+    std::vector<std::pair<double, GridLine>> candH;
+    for (std::size_t ih = 1; ih + 1 < nh; ++ih) {
+      double s2 = 0.0;
+      for (std::size_t iv = 0; iv < nv; ++iv)
+        s2 = std::max(s2, std::abs(at(ih + 1, iv) - 2 * at(ih, iv) + at(ih - 1, iv)));
+      if (s2 > threshold) {
+        candH.emplace_back(s2, horizontalLine(t->type, t->horizontal[ih]));
+        if (t->symmetry == PlaneSymmetry::MirrorH || t->type == PhotometricType::C)
+          candH.emplace_back(s2, horizontalLine(t->type, -t->horizontal[ih]));
+      }
+    }
+    auto keepLargest = [&](std::vector<std::pair<double, GridLine>>& v) {
+      std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+      if (v.size() > static_cast<std::size_t>(Profile::kMaxFeatureLines)) v.resize(static_cast<std::size_t>(Profile::kMaxFeatureLines));
+      for (const auto& [s2, line] : v) p->features_.push_back(Profile::Line{line.axis, line.c});
+    };
+    keepLargest(cand);
+    keepLargest(candH);
+  }
   return std::shared_ptr<const Profile>(std::move(p));
 }
 

@@ -120,10 +120,24 @@ class Profile {
   /// data). Appends the θ values, unsorted. Used by the reference quadrature.
   void appendKinks(const Vec3& n, const Vec3& t, double lo, double hi, std::vector<double>& out) const;
 
+  /// Like appendKinks, but only the grid lines where the slope of I changes most (at most
+  /// 2 × kMaxFeatureLines lines, those whose largest second difference across the line exceeds
+  /// 1 % of the peak): the cut-off of a headlamp, the edges of a beam. For spot profiles
+  /// these are the two cone edges. Used by the accurate method to place its pieces.
+  void appendFeatureKinks(const Vec3& n, const Vec3& t, double lo, double hi, std::vector<double>& out) const;
+  static constexpr int kMaxFeatureLines = 32;
+
+  /// A grid line on the direction sphere: the directions w with w·axis = c.
+  struct Line {
+    Vec3 axis;
+    double c;
+  };
+
  private:
   friend Result<std::shared_ptr<const Profile>> makeProfile(Model model);
   Model model_;
   double support_ = kPi;
+  std::vector<Line> features_;
 };
 
 /// Validates and wraps a model (computes cached properties).
