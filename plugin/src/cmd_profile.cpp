@@ -227,7 +227,7 @@ void drawText(RgbImage& img, int x, int y, const std::string& s, int scale, Rgb 
     if (it != kFont.end()) {
       for (int row = 0; row < 7; ++row)
         for (int col = 0; col < 5; ++col)
-          if ((it->rows[static_cast<std::size_t>(row)] >> (4 - col)) & 1U)
+          if ((static_cast<unsigned>(it->rows[static_cast<std::size_t>(row)]) >> static_cast<unsigned>(4 - col)) & 1U)
             for (int dy = 0; dy < scale; ++dy)
               for (int dx = 0; dx < scale; ++dx) img.set(x + col * scale + dx, y + row * scale + dy, colour);
     }
