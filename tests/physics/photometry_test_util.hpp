@@ -18,6 +18,14 @@ inline std::string photometryPath(const std::string& file) {
   return std::string(FOGBEAM_TEST_DATA_DIR) + "/photometry/" + file;
 }
 
+/// Parses a fixture with `parse` (parseIesFile, parseEulumdatFile, …), expecting success.
+inline Result<TabulatedProfile> parseFixtureWith(Result<TabulatedProfile> (*parse)(const std::string&),
+                                                 const std::string& file) {
+  Result<TabulatedProfile> r = parse(photometryPath(file));
+  EXPECT_TRUE(r.has_value()) << (r ? std::string() : r.error().message);
+  return r;
+}
+
 /// Wraps a parsed profile through the public path (makeProfile validates it again).
 inline std::shared_ptr<const Profile> wrap(const TabulatedProfile& tab) {
   Result<std::shared_ptr<const Profile>> p = makeProfile(tab);

@@ -22,11 +22,7 @@ using testing::wrap;
 
 constexpr PhotometricType B = PhotometricType::B;
 
-Result<TabulatedProfile> parseFixture(const std::string& file) {
-  Result<TabulatedProfile> r = parseCsvProfileFile(photometryPath(file));
-  EXPECT_TRUE(r.has_value()) << (r ? std::string() : r.error().message);
-  return r;
-}
+Result<TabulatedProfile> parseFixture(const std::string& file) { return testing::parseFixtureWith(parseCsvProfileFile, file); }
 
 TEST(Csv, ParsesGridAsTypeBAndTransposesRows) {
   Result<TabulatedProfile> t = parseFixture("headlamp_grid.csv");

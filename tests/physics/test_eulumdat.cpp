@@ -26,11 +26,7 @@ constexpr PhotometricType C = PhotometricType::C;
 // The fixtures share their planes (cd/klm at γ = 0, 45, 90°):
 //   C0 100 50 10, C90 200 100 20, C180 300 150 30, C270 400 200 40,
 // and lamp set 1 gives 2 × 1000 lm (or |−1| × 2000 lm), so cd = 2 × cd/klm.
-Result<TabulatedProfile> parseFixture(const std::string& file) {
-  Result<TabulatedProfile> r = parseEulumdatFile(photometryPath(file));
-  EXPECT_TRUE(r.has_value()) << (r ? std::string() : r.error().message);
-  return r;
-}
+Result<TabulatedProfile> parseFixture(const std::string& file) { return testing::parseFixtureWith(parseEulumdatFile, file); }
 
 // A valid Isym 0 file, one field per entry; entry i is line i + 1. Lines 43–46 hold the C
 // angles, 47–49 the γ angles, 50–61 the intensities.

@@ -37,11 +37,7 @@ std::string ies2002(std::string_view data, std::string_view tilt = "NONE") {
 // Type C, rotational, 3 vertical angles, candela 100 50 10.
 constexpr std::string_view kRotational = "1 -1 1 3 1 1 2 0 0 0\n1 1 10\n0 45 90\n0\n100 50 10\n";
 
-Result<TabulatedProfile> parseFixture(const std::string& file) {
-  Result<TabulatedProfile> r = parseIesFile(photometryPath(file));
-  EXPECT_TRUE(r.has_value()) << (r ? std::string() : r.error().message);
-  return r;
-}
+Result<TabulatedProfile> parseFixture(const std::string& file) { return testing::parseFixtureWith(parseIesFile, file); }
 
 // ---------------------------------------------------------------------------------------
 // Versions, types and symmetry layouts.

@@ -33,12 +33,12 @@ double tanHalfAngleSum(double theta) {
 }
 
 // ---- caches: tables are shared between evaluators with the same phase or profile ----------
-using PhaseKey = std::tuple<std::size_t, double, double, int, int, double>;
+using PhaseKey = std::tuple<std::size_t, double, int, int, double>;
 PhaseKey phaseKey(const Phase& ph, int a, int b, double c) {
   double p0 = 0.0;
   if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&ph)) p0 = hg->g;
   if (const auto* fm = std::get_if<FogMiePhase>(&ph)) p0 = fm->diameter_um;
-  return {ph.index(), p0, 0.0, a, b, c};
+  return {ph.index(), p0, a, b, c};
 }
 
 // Caches tables by key. `owner` ties an entry to the object it was built from (a profile):
@@ -245,8 +245,8 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
   }
   std::vector<double> bp{th0, thD};
   bp.reserve(16);
-  int piecesPerUnit = 0;
-  if (std::holds_alternative<SpotProfile>(model)) {
+  const bool tabulated = std::holds_alternative<TabulatedProfile>(model);
+  if (!tabulated) {
     c.profile.appendKinks(c.n, c.t, th0, thD, bp);
   } else {
     // Clip to the profile's support cone: outside it I = 0.
@@ -264,24 +264,22 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
       }
     }
     c.profile.appendFeatureKinks(c.n, c.t, th0, thD, bp);
-    piecesPerUnit = 1;
   }
   std::sort(bp.begin(), bp.end());
 
-  // Length of the intervals where I is not identically zero (for tabulated pieces).
+  // Intervals between breakpoints where I is not identically zero, and their total length
+  // (tabulated profiles share their pieces out over it). Spot: between cone crossings I is 0,
+  // constant or a ramp, so the midpoint decides. Tabulated: the support cone decides.
   std::vector<char> live(bp.size(), 0);
   double liveLength = 0.0;
+  const double cosSupport = std::cos(c.profile.supportHalfAngle());
   for (std::size_t i = 1; i < bp.size(); ++i) {
     const double a = bp[i - 1], b = bp[i];
     if (b - a < 1e-13) continue;
     const double mid = 0.5 * (a + b);
-    bool any = c.intensity(mid) > 0.0 || c.intensity(a + 1e-9 * (b - a)) > 0.0 || c.intensity(b - 1e-9 * (b - a)) > 0.0;
-    if (!any && piecesPerUnit == 0) continue;  // spot: between kinks I is 0, constant or a ramp
-    if (!any) {
-      // Tabulated: the interval lies outside the support cone only if its midpoint does.
-      const Vec3 w = std::cos(mid) * c.n + std::sin(mid) * c.t;
-      if (std::acos(std::clamp(w.x, -1.0, 1.0)) > c.profile.supportHalfAngle()) continue;
-    }
+    const bool isLive = tabulated ? (std::cos(mid) * c.n.x + std::sin(mid) * c.t.x) >= cosSupport
+                                  : c.intensity(mid) > 0.0;
+    if (!isLive) continue;
     live[i] = 1;
     liveLength += b - a;
   }
@@ -291,7 +289,7 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
     if (!live[i]) continue;
     const double a = bp[i - 1], b = bp[i];
     int pieces = 1;
-    if (piecesPerUnit == 0) {
+    if (!tabulated) {
       const double ia = c.intensity(a + 1e-12), im = c.intensity(0.5 * (a + b)), ib = c.intensity(b - 1e-12);
       const bool constant = ia == im && im == ib;
       pieces = constant ? 1 : opt.accurate_spot_segments;

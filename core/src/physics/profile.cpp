@@ -124,10 +124,7 @@ double computeSupport(const Profile& p) {
 
 // Grid lines of a tabulated profile: families of cones (w·a = c) or planes through an axis
 // (w·q = 0), as in appendKinks. Returns the line for the i-th horizontal or vertical angle.
-struct GridLine {
-  Vec3 axis;
-  double c;
-};
+using GridLine = Profile::Line;
 GridLine horizontalLine(PhotometricType type, double h) {
   switch (type) {
     case PhotometricType::C: return {Vec3(0, std::sin(h), -std::cos(h)), 0.0};
@@ -143,6 +140,30 @@ GridLine verticalLine(PhotometricType type, double v) {
     case PhotometricType::A: return {Vec3(0, 0, 1), std::sin(v)};
   }
   return {Vec3(1, 0, 0), 1.0};
+}
+
+// The grid lines of horizontal angle h as seen on the whole sphere: the line itself and, where
+// symmetry folds the data, its mirror image (type C planes are mirrored about C = 0 for
+// every folded layout; the extra line is harmless for full data).
+void appendHorizontalLines(const TabulatedProfile& t, double h, std::vector<GridLine>& out) {
+  out.push_back(horizontalLine(t.type, h));
+  if (t.symmetry == PlaneSymmetry::MirrorH || t.type == PhotometricType::C) out.push_back(horizontalLine(t.type, -h));
+}
+
+// Every kink of the bilinear interpolant: all grid lines, their mirror images and, for folded
+// type C data, the fold planes C = 0 and C = 90°.
+std::vector<GridLine> allGridLines(const TabulatedProfile& t) {
+  std::vector<GridLine> lines;
+  const bool rotational = t.symmetry == PlaneSymmetry::Rotational || t.horizontal.size() == 1;
+  if (!rotational) {
+    for (double h : t.horizontal) appendHorizontalLines(t, h, lines);
+    if (t.type == PhotometricType::C) {
+      lines.push_back(horizontalLine(t.type, 0.0));
+      lines.push_back(horizontalLine(t.type, kHalfPi));
+    }
+  }
+  for (double v : t.vertical) lines.push_back(verticalLine(t.type, v));
+  return lines;
 }
 
 }  // namespace
@@ -286,7 +307,7 @@ Profile::Peak Profile::peak() const {
 }
 
 void Profile::appendKinks(const Vec3& n, const Vec3& t, double lo, double hi, std::vector<double>& out) const {
-  const Vec3 ex(1, 0, 0), ey(0, 1, 0), ez(0, 0, 1);
+  const Vec3 ex(1, 0, 0);
   std::visit(
       Overloaded{
           [](const IsotropicProfile&) {},
@@ -294,34 +315,8 @@ void Profile::appendKinks(const Vec3& n, const Vec3& t, double lo, double hi, st
             crossingsDot(n, t, ex, std::cos(m.inner), lo, hi, out);
             crossingsDot(n, t, ex, std::cos(m.outer), lo, hi, out);
           },
-          [&](const TabulatedProfile& m) {
-            // Bilinear interpolation has kinks on every grid line; each family of lines is
-            // either cones about an axis (w·a = c) or planes through one (w·q = 0).
-            std::vector<double> hs = m.horizontal;
-            if (m.type == PhotometricType::C) {
-              if (m.symmetry != PlaneSymmetry::Rotational)
-                for (double h : m.horizontal) hs.push_back(-h);
-              hs.push_back(0.0);
-              hs.push_back(kHalfPi);
-              if (m.symmetry == PlaneSymmetry::Rotational) hs.clear();
-              for (double c : hs) crossingsDot(n, t, Vec3(0, std::sin(c), -std::cos(c)), 0.0, lo, hi, out);
-              for (double g : m.vertical) crossingsDot(n, t, ex, std::cos(g), lo, hi, out);
-            } else if (m.type == PhotometricType::B) {
-              for (double h : m.horizontal) {
-                crossingsDot(n, t, -ey, std::sin(h), lo, hi, out);
-                if (m.symmetry == PlaneSymmetry::MirrorH) crossingsDot(n, t, -ey, -std::sin(h), lo, hi, out);
-              }
-              for (double v : m.vertical) crossingsDot(n, t, Vec3(-std::sin(v), 0, std::cos(v)), 0.0, lo, hi, out);
-            } else {
-              for (double h : m.horizontal) {
-                crossingsDot(n, t, Vec3(-std::sin(h), -std::cos(h), 0), 0.0, lo, hi, out);
-                if (m.symmetry == PlaneSymmetry::MirrorH)
-                  crossingsDot(n, t, Vec3(std::sin(h), -std::cos(h), 0), 0.0, lo, hi, out);
-              }
-              for (double v : m.vertical) crossingsDot(n, t, ez, std::sin(v), lo, hi, out);
-            }
-            // The edges of the covered range are kinks too (the value drops to 0 there);
-            // they are grid lines, already included above.
+          [&](const TabulatedProfile&) {
+            for (const Line& l : gridLines_) crossingsDot(n, t, l.axis, l.c, lo, hi, out);
           },
       },
       model_);
@@ -350,6 +345,7 @@ Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
   auto p = std::make_shared<Profile>(std::move(model));
   p->support_ = computeSupport(*p);
   if (const auto* t = std::get_if<TabulatedProfile>(&p->model_)) {
+    p->gridLines_ = allGridLines(*t);
     // Feature lines: where the slope of I across a grid line changes by more than 1 % of the
     // peak per grid step (largest second difference over the other angle). Mirrored copies
     // are added for symmetric data.
@@ -371,15 +367,15 @@ Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
       for (std::size_t iv = 0; iv < nv; ++iv)
         s2 = std::max(s2, std::abs(at(ih + 1, iv) - 2 * at(ih, iv) + at(ih - 1, iv)));
       if (s2 > threshold) {
-        candH.emplace_back(s2, horizontalLine(t->type, t->horizontal[ih]));
-        if (t->symmetry == PlaneSymmetry::MirrorH || t->type == PhotometricType::C)
-          candH.emplace_back(s2, horizontalLine(t->type, -t->horizontal[ih]));
+        std::vector<GridLine> lines;
+        appendHorizontalLines(*t, t->horizontal[ih], lines);
+        for (const GridLine& l : lines) candH.emplace_back(s2, l);
       }
     }
     auto keepLargest = [&](std::vector<std::pair<double, GridLine>>& v) {
       std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
       if (v.size() > static_cast<std::size_t>(Profile::kMaxFeatureLines)) v.resize(static_cast<std::size_t>(Profile::kMaxFeatureLines));
-      for (const auto& [s2, line] : v) p->features_.push_back(Profile::Line{line.axis, line.c});
+      for (const auto& [s2, line] : v) p->features_.push_back(line);
     };
     keepLargest(cand);
     keepLargest(candH);

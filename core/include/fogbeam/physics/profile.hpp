@@ -137,7 +137,8 @@ class Profile {
   friend Result<std::shared_ptr<const Profile>> makeProfile(Model model);
   Model model_;
   double support_ = kPi;
-  std::vector<Line> features_;
+  std::vector<Line> gridLines_;  // tabulated: every kink of the bilinear interpolant
+  std::vector<Line> features_;   // tabulated: the subset where the slope changes most
 };
 
 /// Validates and wraps a model (computes cached properties).
