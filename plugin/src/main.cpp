@@ -1,5 +1,5 @@
-// fogbeam — the single executable. Subcommands: validate, profile (issue 2);
-// render, bench, serve, replay, view, send come with later issues.
+// fogbeam — the single executable. Subcommands: validate, profile (issue 2), render (issue 3);
+// bench, serve, replay, view, send come with later issues.
 #include "commands.hpp"
 
 #include <CLI/CLI.hpp>
@@ -11,6 +11,7 @@ int main(int argc, char** argv) {
   int exitCode = 0;
   fogbeam::cli::addValidateCommand(app, exitCode);
   fogbeam::cli::addProfileCommand(app, exitCode);
+  fogbeam::cli::addRenderCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
 }

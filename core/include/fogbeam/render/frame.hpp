@@ -1,0 +1,37 @@
+// fogbeam — compositing a frame from its surface and airlight layers, and display mapping.
+//
+//   composite    = L_s + A_m                    (L_s already holds the ambient in-scatter)
+//   transmittance T = e^{−K_t d}                (0 for sky)
+//   overlay      = (A_m + I_a (1 − T), T)       so a host image generator does host · T + A
+//
+// All layers are linear cd/m² (white lamps give R = G = B = luminance), rows top to bottom.
+// Thread-safety: pure functions on caller-owned buffers.
+#pragma once
+
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/surface.hpp>
+
+#include <cstdint>
+#include <vector>
+
+namespace fogbeam {
+
+struct FrameLayers {
+  int width = 0, height = 0;
+  std::vector<float> composite;      ///< 3 per pixel
+  std::vector<float> airlight;       ///< 3 per pixel: in-scattered lamp light A_m
+  std::vector<float> surface;        ///< 3 per pixel: L_s
+  std::vector<float> overlay;        ///< 3 per pixel: A_m + I_a (1 − T)
+  std::vector<float> transmittance;  ///< 1 per pixel
+  std::vector<float> distance;       ///< 1 per pixel, metres, +inf for sky
+};
+
+/// Fills every layer (reusing the buffers' capacity).
+void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const AirlightImage& airlight, FrameLayers& out);
+
+/// Display mapping of linear luminance: x = L · 2^exposureEv / (1 cd/m²), Reinhard x/(1 + x)
+/// per channel, then the sRGB transfer curve, 8 bits. At EV 0, 1 cd/m² shows as mid-grey
+/// (display 0.5 before the sRGB curve); each +1 EV doubles the scene's brightness.
+[[nodiscard]] std::vector<std::uint8_t> toneMapSrgb8(const std::vector<float>& rgb, double exposureEv);
+
+}  // namespace fogbeam

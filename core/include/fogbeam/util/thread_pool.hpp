@@ -1,0 +1,48 @@
+// fogbeam — a fixed pool of worker threads for data-parallel loops in the frame path.
+//
+// Why not std::async or OpenMP: the frame loop must not create threads or allocate per frame,
+// and the project avoids an OpenMP runtime dependency for one loop shape. Workers are created
+// once; parallelFor() hands out indices [0, n) in chunks through one atomic counter.
+// Thread-safety: parallelFor() may be called from one thread at a time.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace fogbeam {
+
+class ThreadPool {
+ public:
+  /// `threads` = 0 uses std::thread::hardware_concurrency(). The calling thread also works,
+  /// so a pool of N threads starts N − 1 workers.
+  explicit ThreadPool(unsigned threads = 0);
+  ~ThreadPool();
+  ThreadPool(const ThreadPool&) = delete;
+  ThreadPool& operator=(const ThreadPool&) = delete;
+
+  [[nodiscard]] unsigned size() const noexcept { return static_cast<unsigned>(workers_.size()) + 1; }
+
+  /// Calls fn(i) for every i in [0, n), spread over the pool; returns when all are done.
+  void parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn);
+
+ private:
+  void workerLoop();
+  void runChunks();
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_, done_;
+  const std::function<void(std::size_t)>* fn_ = nullptr;
+  std::size_t n_ = 0;
+  std::atomic<std::size_t> next_{0};
+  std::size_t generation_ = 0;
+  unsigned busy_ = 0;
+  bool stop_ = false;
+};
+
+}  // namespace fogbeam

@@ -1,0 +1,63 @@
+#include <fogbeam/util/thread_pool.hpp>
+
+namespace fogbeam {
+
+ThreadPool::ThreadPool(unsigned threads) {
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  for (unsigned i = 1; i < threads; ++i) workers_.emplace_back([this] { workerLoop(); });
+}
+
+ThreadPool::~ThreadPool() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  for (auto& t : workers_) t.join();
+}
+
+void ThreadPool::runChunks() {
+  for (std::size_t i = next_.fetch_add(1); i < n_; i = next_.fetch_add(1)) (*fn_)(i);
+}
+
+void ThreadPool::workerLoop() {
+  std::size_t seen = 0;
+  while (true) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+      if (stop_) return;
+      seen = generation_;
+      ++busy_;
+    }
+    runChunks();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      --busy_;
+    }
+    done_.notify_one();
+  }
+}
+
+void ThreadPool::parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn) {
+  if (workers_.empty() || n <= 1) {
+    for (std::size_t i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    fn_ = &fn;
+    n_ = n;
+    next_.store(0);
+    ++generation_;
+  }
+  wake_.notify_all();
+  runChunks();
+  std::unique_lock<std::mutex> lock(mutex_);
+  // Every worker that woke for this generation has finished when busy_ returns to 0 and the
+  // counter has run past n (a worker that has not woken yet will find no work left).
+  done_.wait(lock, [&] { return busy_ == 0 && next_.load() >= n_; });
+  fn_ = nullptr;
+}
+
+}  // namespace fogbeam

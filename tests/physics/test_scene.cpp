@@ -1,0 +1,454 @@
+#include <fogbeam/physics/math.hpp>
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/scene/scene.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <variant>
+
+namespace fogbeam {
+namespace {
+
+const std::string kScenes = std::string(FOGBEAM_TEST_DATA_DIR) + "/scenes";
+const std::string kShipped = std::string(FOGBEAM_CONFIG_DIR) + "/scenes";
+
+bool Contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+/// The error message of a scene that must not parse (relative paths resolve in kScenes).
+std::string errorOf(const std::string& text) {
+  const Result<Scene> r = parseScene(text, "bad.toml", kScenes);
+  if (r) {
+    ADD_FAILURE() << "parsed without error:\n" << text;
+    return {};
+  }
+  return r.error().message;
+}
+
+Scene parse(const std::string& text) {
+  Result<Scene> r = parseScene(text, "good.toml", kScenes);
+  if (!r) {
+    ADD_FAILURE() << r.error().message;
+    return {};
+  }
+  return std::move(r).value();
+}
+
+// A valid fog and camera on lines 1–6, so that a snippet appended to it starts on line 7.
+const std::string kFogAndCamera =
+    "[fog]\n"
+    "extinction_per_m = 0.04\n"
+    "[camera]\n"
+    "position_m = [0, 0, 1.2]\n"
+    "width = 64\n"
+    "height = 36\n";
+
+void expectVecNear(const Vec3& actual, const Vec3& expected, double tol = 1e-12) {
+  EXPECT_NEAR(actual.x, expected.x, tol);
+  EXPECT_NEAR(actual.y, expected.y, tol);
+  EXPECT_NEAR(actual.z, expected.z, tol);
+}
+
+void expectMatNear(const Mat3& actual, const Mat3& expected) {
+  for (glm::length_t c = 0; c < 3; ++c) expectVecNear(actual[c], expected[c]);
+}
+
+double peakOf(const Profile& p) { return p.peak().intensity_cd; }
+
+// ---- Every key ---------------------------------------------------------------------------------
+
+TEST(SceneFile, ParsesEveryKeyIntoItsField) {
+  const std::string path = kScenes + "/full.toml";
+  const Result<Scene> r = loadScene(path);
+  ASSERT_TRUE(r) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_EQ(s.source, path);
+
+  // [fog]: visibility 50 m → K_t = ln 20 / 50; fog-mie with a 20 µm droplet.
+  EXPECT_NEAR(s.fog.extinction_per_m, std::log(20.0) / 50.0, 1e-15);
+  EXPECT_DOUBLE_EQ(s.fog.albedo, 0.9);
+  EXPECT_DOUBLE_EQ(s.fog.ambient_cd_m2, 0.25);
+  const auto* mie = std::get_if<FogMiePhase>(&s.fog.phase);
+  ASSERT_NE(mie, nullptr) << describe(s.fog.phase);
+  EXPECT_DOUBLE_EQ(mie->diameter_um, 20.0);
+  EXPECT_DOUBLE_EQ(mie->g_hg, std::get<FogMiePhase>(makeFogMie(20.0).value()).g_hg);
+
+  // [camera]
+  expectVecNear(s.camera.position_m, Vec3(1.0, -2.0, 1.5));
+  expectMatNear(s.camera.worldFromCamera, worldFromYawPitchRoll(radians(90.0), radians(10.0), radians(5.0)));
+  EXPECT_DOUBLE_EQ(s.camera.fov_x, radians(45.0));
+  EXPECT_EQ(s.camera.width, 320);
+  EXPECT_EQ(s.camera.height, 200);
+
+  // [[lamp]] × 5
+  ASSERT_EQ(s.lamps.size(), 5u);
+  EXPECT_EQ(s.lamps[0].name, "street");
+  EXPECT_EQ(s.lamps[1].name, "torch");
+  EXPECT_EQ(s.lamps[2].name, "lamp[3]");
+  EXPECT_EQ(s.lamps[4].name, "lamp[5]");
+
+  const Lamp& street = s.lamps[0].lamp;
+  expectVecNear(street.position_m, Vec3(20.0, 5.0, 8.0));
+  expectVecNear(street.color, Vec3(1.0, 0.8, 0.6));
+  const auto* iso = std::get_if<IsotropicProfile>(&street.profile->model());
+  ASSERT_NE(iso, nullptr);
+  EXPECT_DOUBLE_EQ(iso->intensity_cd, 500.0);
+
+  const Lamp& torch = s.lamps[1].lamp;
+  expectMatNear(torch.worldFromLamp, worldFromYawPitchRoll(radians(180.0), 0.0, radians(30.0)));
+  expectVecNear(torch.color, Vec3(1.0));
+  const auto* spot = std::get_if<SpotProfile>(&torch.profile->model());
+  ASSERT_NE(spot, nullptr);
+  EXPECT_DOUBLE_EQ(spot->peak_cd, 2000.0);
+  EXPECT_DOUBLE_EQ(spot->inner, radians(5.0));
+  EXPECT_DOUBLE_EQ(spot->outer, radians(15.0));
+
+  // The CSV lamp: the fixture peaks at 1000 cd; scale = 2.5 multiplies every value.
+  const auto* tab = std::get_if<TabulatedProfile>(&s.lamps[2].lamp.profile->model());
+  ASSERT_NE(tab, nullptr);
+  EXPECT_NEAR(peakOf(*s.lamps[2].lamp.profile), 2500.0, 1e-9);
+  EXPECT_NEAR(peakOf(*s.lamps[4].lamp.profile), 1000.0, 1e-9);
+  expectVecNear(s.lamps[3].lamp.position_m, Vec3(45.0, 2.1, 0.65));
+
+  // [[plane]] × 2: the normal is normalised; reflectance defaults to 0.15.
+  ASSERT_EQ(s.planes.size(), 2u);
+  expectVecNear(s.planes[0].point_m, Vec3(0.0, 0.0, -0.1));
+  expectVecNear(s.planes[0].normal, Vec3(0.0, 0.0, 1.0));
+  EXPECT_DOUBLE_EQ(s.planes[0].reflectance, 0.3);
+  expectVecNear(s.planes[1].normal, Vec3(0.0, -1.0, 0.0));
+  EXPECT_DOUBLE_EQ(s.planes[1].reflectance, 0.15);
+
+  // gltf: resolved against the scene file's directory.
+  ASSERT_TRUE(s.gltf_path.has_value());
+  EXPECT_EQ(std::filesystem::path(*s.gltf_path), std::filesystem::path(kScenes + "/placeholder.glb").lexically_normal());
+}
+
+TEST(SceneFile, LampsWithTheSameFileAndScaleShareOneProfile) {
+  const Result<Scene> r = loadScene(kScenes + "/full.toml");
+  ASSERT_TRUE(r) << r.error().message;
+  const auto& lamps = r.value().lamps;
+  // "tiny_lamp.csv" and "./tiny_lamp.csv" with the same scale: one Profile (one set of tables).
+  EXPECT_EQ(lamps[2].lamp.profile.get(), lamps[3].lamp.profile.get());
+  // The same file with another scale is another profile.
+  EXPECT_NE(lamps[2].lamp.profile.get(), lamps[4].lamp.profile.get());
+}
+
+TEST(SceneFile, OrientationFollowsThePhysicsNotes) {
+  const Scene s = parse(kFogAndCamera +
+                        "[[lamp]]\nposition_m = [0, 0, 0]\nyaw_deg = 180.0\nprofile = \"isotropic\"\nintensity_cd = 1\n"
+                        "[[lamp]]\nposition_m = [0, 0, 0]\npitch_deg = 10.0\nprofile = \"isotropic\"\nintensity_cd = 1\n"
+                        "[[lamp]]\nposition_m = [0, 0, 0]\nyaw_deg = 90.0\nprofile = \"isotropic\"\nintensity_cd = 1\n");
+  ASSERT_EQ(s.lamps.size(), 3u);
+  // yaw 180°: the photometric axis (+x column) points to world −x, the lamp's left to −y.
+  expectVecNear(s.lamps[0].lamp.worldFromLamp[0], Vec3(-1.0, 0.0, 0.0));
+  expectVecNear(s.lamps[0].lamp.worldFromLamp[1], Vec3(0.0, -1.0, 0.0));
+  // positive pitch tilts the axis down.
+  expectVecNear(s.lamps[1].lamp.worldFromLamp[0], Vec3(std::cos(radians(10.0)), 0.0, -std::sin(radians(10.0))));
+  // positive yaw turns left (+y).
+  expectVecNear(s.lamps[2].lamp.worldFromLamp[0], Vec3(0.0, 1.0, 0.0));
+}
+
+TEST(SceneFile, CameraLooksAlongItsYawAndPitch) {
+  const Scene s = parse(
+      "[fog]\nextinction_per_m = 0.04\n"
+      "[camera]\nposition_m = [0, 0, 1.2]\nyaw_deg = 180.0\npitch_deg = 5.0\nwidth = 64\nheight = 36\n");
+  const Vec3 axis(-std::cos(radians(5.0)), 0.0, -std::sin(radians(5.0)));
+  expectVecNear(s.camera.worldFromCamera[0], axis);
+  expectVecNear(s.camera.rayDirection(32.0, 18.0), axis, 1e-12);  // the image centre
+}
+
+TEST(SceneFile, VisibilityIsConvertedWithTheMorFormula) {
+  const Scene s = parse(
+      "[fog]\nvisibility_m = 75.0\n"
+      "[camera]\nposition_m = [0, 0, 1.2]\nwidth = 64\nheight = 36\n");
+  EXPECT_NEAR(s.fog.extinction_per_m, std::log(20.0) / 75.0, 1e-15);
+  EXPECT_NEAR(s.fog.extinction_per_m, 0.03994, 1e-5);
+  EXPECT_DOUBLE_EQ(s.fog.extinction_per_m, extinctionFromVisibility(75.0));
+}
+
+TEST(SceneFile, DefaultsApplyToOmittedKeys) {
+  const Scene s = parse(kFogAndCamera +
+                        "[[lamp]]\nposition_m = [1, 2, 3]\nprofile = \"isotropic\"\nintensity_cd = 100\n"
+                        "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 1]\n");
+  EXPECT_DOUBLE_EQ(s.fog.albedo, 1.0);
+  EXPECT_DOUBLE_EQ(s.fog.ambient_cd_m2, 0.0);
+  const auto* hg = std::get_if<HenyeyGreensteinPhase>(&s.fog.phase);
+  ASSERT_NE(hg, nullptr) << describe(s.fog.phase);
+  EXPECT_DOUBLE_EQ(hg->g, 0.85);
+  expectMatNear(s.camera.worldFromCamera, Mat3(1.0));
+  EXPECT_DOUBLE_EQ(s.camera.fov_x, radians(60.0));
+  ASSERT_EQ(s.lamps.size(), 1u);
+  EXPECT_EQ(s.lamps[0].name, "lamp[1]");
+  expectMatNear(s.lamps[0].lamp.worldFromLamp, Mat3(1.0));
+  expectVecNear(s.lamps[0].lamp.color, Vec3(1.0));
+  ASSERT_EQ(s.planes.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.planes[0].reflectance, 0.15);
+  EXPECT_FALSE(s.gltf_path.has_value());
+}
+
+TEST(SceneFile, AScaledFileMultipliesEveryCandelaValue) {
+  const Scene s = parse(kFogAndCamera +
+                        "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"tiny_lamp.csv\"\n"
+                        "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"tiny_lamp.csv\"\nscale = 0.5\n");
+  const auto& a = std::get<TabulatedProfile>(s.lamps[0].lamp.profile->model());
+  const auto& b = std::get<TabulatedProfile>(s.lamps[1].lamp.profile->model());
+  ASSERT_EQ(a.candela.size(), b.candela.size());
+  for (std::size_t i = 0; i < a.candela.size(); ++i) EXPECT_DOUBLE_EQ(b.candela[i], 0.5 * a.candela[i]);
+}
+
+TEST(SceneFile, ScaleAlsoMultipliesAClosedFormIntensity) {
+  // Issue 3's example writes scale = 1.0 in a spot lamp; it must parse, and then it scales.
+  const Scene s = parse(kFogAndCamera +
+                        "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"spot\"\nintensity_cd = 5\n"
+                        "inner_deg = 1\nouter_deg = 5\nscale = 2\n"
+                        "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 5\nscale = 0.5\n");
+  EXPECT_DOUBLE_EQ(std::get<SpotProfile>(s.lamps[0].lamp.profile->model()).peak_cd, 10.0);
+  EXPECT_DOUBLE_EQ(std::get<IsotropicProfile>(s.lamps[1].lamp.profile->model()).intensity_cd, 2.5);
+}
+
+TEST(SceneFile, IsotropicPhaseAndIntegerNumbersAreAccepted) {
+  const Scene s = parse(
+      "[fog]\nextinction_per_m = 1\nphase = \"isotropic\"\nalbedo = 1\n"
+      "[camera]\nposition_m = [0, 0, 1]\nfov_x_deg = 90\nwidth = 16384\nheight = 1\n");
+  EXPECT_TRUE(std::holds_alternative<IsotropicPhase>(s.fog.phase));
+  EXPECT_DOUBLE_EQ(s.fog.extinction_per_m, 1.0);
+  EXPECT_EQ(s.camera.width, 16384);
+  EXPECT_EQ(s.camera.height, 1);
+}
+
+// ---- Shipped scenes ----------------------------------------------------------------------------
+
+TEST(SceneFile, ShippedOncomingSceneLoadsWithOneSharedLowBeamProfile) {
+  const Result<Scene> r = loadScene(kShipped + "/oncoming.toml");
+  ASSERT_TRUE(r) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_NEAR(s.fog.extinction_per_m, std::log(20.0) / 75.0, 1e-15);
+  ASSERT_TRUE(std::holds_alternative<HenyeyGreensteinPhase>(s.fog.phase));
+  EXPECT_DOUBLE_EQ(std::get<HenyeyGreensteinPhase>(s.fog.phase).g, 0.85);
+  ASSERT_EQ(s.lamps.size(), 4u);
+  for (const SceneLamp& l : s.lamps) {
+    EXPECT_EQ(l.lamp.profile.get(), s.lamps[0].lamp.profile.get()) << l.name;
+    EXPECT_TRUE(std::holds_alternative<TabulatedProfile>(l.lamp.profile->model())) << l.name;
+  }
+  // The ego lamps look ahead, the oncoming ones back towards the camera.
+  expectVecNear(s.lamps[0].lamp.worldFromLamp[0], Vec3(1.0, 0.0, 0.0));
+  expectVecNear(s.lamps[2].lamp.worldFromLamp[0], Vec3(-1.0, 0.0, 0.0));
+  EXPECT_GT(s.lamps[2].lamp.position_m.y, 1.75);  // in the other lane
+  ASSERT_EQ(s.planes.size(), 1u);
+}
+
+TEST(SceneFile, ShippedSpotsSceneIsTheIssueExample) {
+  const Result<Scene> r = loadScene(kShipped + "/spots.toml");
+  ASSERT_TRUE(r) << r.error().message;
+  const Scene& s = r.value();
+  EXPECT_DOUBLE_EQ(s.fog.extinction_per_m, 0.04);
+  EXPECT_DOUBLE_EQ(s.fog.albedo, 0.95);
+  ASSERT_EQ(s.lamps.size(), 1u);
+  const auto& spot = std::get<SpotProfile>(s.lamps[0].lamp.profile->model());
+  EXPECT_DOUBLE_EQ(spot.peak_cd, 20000.0);
+  EXPECT_EQ(s.camera.width, 640);
+  EXPECT_EQ(s.camera.height, 360);
+  ASSERT_EQ(s.planes.size(), 1u);
+}
+
+TEST(SceneFile, TheDocumentedExampleParses) {
+  const auto doc = readTextFile(std::string(FOGBEAM_CONFIG_DIR) + "/../docs/scene.md");
+  ASSERT_TRUE(doc) << doc.error().message;
+  const std::size_t begin = doc.value().find("```toml\n");
+  ASSERT_NE(begin, std::string::npos);
+  const std::size_t end = doc.value().find("```", begin + 8);
+  ASSERT_NE(end, std::string::npos);
+  const Scene s = parse(doc.value().substr(begin + 8, end - begin - 8));
+  EXPECT_EQ(s.lamps.size(), 1u);
+  EXPECT_EQ(s.planes.size(), 1u);
+}
+
+TEST(SceneFile, EveryKeyIsDocumented) {
+  const auto doc = readTextFile(std::string(FOGBEAM_CONFIG_DIR) + "/../docs/scene.md");
+  ASSERT_TRUE(doc) << doc.error().message;
+  for (const char* key :
+       {"extinction_per_m", "visibility_m", "albedo", "phase", "g", "droplet_diameter_um", "ambient_cd_m2",
+        "position_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_x_deg", "width", "height", "name", "profile",
+        "intensity_cd", "inner_deg", "outer_deg", "scale", "color", "point_m", "normal", "reflectance", "gltf"}) {
+    EXPECT_PRED2(Contains, doc.value(), "`" + std::string(key) + "`");
+  }
+}
+
+// ---- Bad files: each message names file, line, section, key and what was expected -------------
+
+TEST(SceneFileErrors, MissingTableOrKey) {
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\n"), "bad.toml: missing table [camera]");
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nheight = 36\n"),
+               "bad.toml:3: [camera] width: missing (expected an integer in [1, 16384])");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nprofile = \"isotropic\"\nintensity_cd = 1\n"),
+               "bad.toml:7: [[lamp]] #1 position_m: missing");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\n"),
+               "bad.toml:7: [[lamp]] #1 profile: missing");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\n"),
+               "bad.toml:7: [[lamp]] #1 intensity_cd: missing (expected a number >= 0)");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera +
+                       "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"spot\"\nintensity_cd = 1\nouter_deg = 10\n"),
+               "bad.toml:7: [[lamp]] #1 inner_deg: missing (expected a number in [0, 10))");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\n"),
+               "bad.toml:7: [[plane]] #1 normal: missing");
+}
+
+TEST(SceneFileErrors, VisibilityAndExtinctionAreExclusiveAndOneIsRequired) {
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\nvisibility_m = 75\n[camera]\nposition_m = [0, 0, 1]\n"
+                       "width = 4\nheight = 4\n"),
+               "bad.toml:3: [fog]: give exactly one of extinction_per_m and visibility_m, found both "
+               "(extinction_per_m on line 2)");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nalbedo = 0.9\n[camera]\nposition_m = [0, 0, 1]\nwidth = 4\nheight = 4\n"),
+               "bad.toml:1: [fog]: missing extinction_per_m or visibility_m");
+}
+
+TEST(SceneFileErrors, UnknownKeysAreNamedWithTheirLine) {
+  const std::string lamp = kFogAndCamera +
+                           "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 1\n"
+                           "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensty_cd = 1\n";
+  EXPECT_PRED2(Contains, errorOf(lamp),
+               "bad.toml:14: [[lamp]] #2: unknown key 'intensty_cd' (did you mean 'intensity_cd'?)");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "fov = 60\n"), "bad.toml:7: [camera]: unknown key 'fov'");
+  EXPECT_PRED2(Contains, errorOf("gltff = \"x.glb\"\n" + kFogAndCamera),
+               "bad.toml:1: unknown top-level key 'gltff' (did you mean 'gltf'?)");
+  // A top-level key written after a table header belongs to that table (TOML scoping).
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "gltf = \"road.glb\"\n"), "bad.toml:7: [camera]: unknown key 'gltf'");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\nvisibility = 3\n"),
+               "bad.toml:3: [fog]: unknown key 'visibility'");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 1]\nalbedo = 0.1\n"),
+               "bad.toml:10: [[plane]] #1: unknown key 'albedo'");
+}
+
+TEST(SceneFileErrors, UnknownProfileOrPhase) {
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"laser\"\n"),
+               "bad.toml:9: [[lamp]] #1 profile: expected \"isotropic\", \"spot\" or a path to a .ies, .ldt or "
+               ".csv file, found \"laser\"");
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\nphase = \"rayleigh\"\n[camera]\nposition_m = [0, 0, 1]\n"
+                       "width = 4\nheight = 4\n"),
+               "bad.toml:3: [fog] phase: expected \"isotropic\", \"henyey-greenstein\" or \"fog-mie\", found "
+               "\"rayleigh\"");
+}
+
+TEST(SceneFileErrors, ProfileFileNotFoundNamesSceneLineAndResolvedPath) {
+  const std::string resolved = (std::filesystem::path(kScenes) / "no_such_lamp.ies").lexically_normal().string();
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"./no_such_lamp.ies\"\n"),
+               "bad.toml:9: [[lamp]] #1 profile: file not found: " + resolved);
+  EXPECT_PRED2(Contains, errorOf("gltf = \"road.glb\"\n" + kFogAndCamera),
+               "bad.toml:1: gltf: file not found: " + kScenes + "/road.glb");
+  // A profile file that exists but does not parse: the scene's place, then the file's own message.
+  const std::string broken =
+      errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"broken_lamp.csv\"\n");
+  EXPECT_PRED2(Contains, broken, "bad.toml:9: [[lamp]] #1 profile: ");
+  EXPECT_PRED2(Contains, broken, "broken_lamp.csv:4:");
+  const Result<Scene> missing = loadScene(kScenes + "/no_such_scene.toml");
+  ASSERT_FALSE(missing);
+  EXPECT_PRED2(Contains, missing.error().message, kScenes + "/no_such_scene.toml: cannot open");
+}
+
+TEST(SceneFileErrors, NonFiniteNumbersAreRejected) {
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = nan\n"),
+               "bad.toml:2: [fog] extinction_per_m: expected a number > 0, found nan");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, inf, 0]\n"),
+               "bad.toml:8: [[lamp]] #1 position_m[1]: expected a finite number, found inf");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nyaw_deg = -nan\n"),
+               "bad.toml:9: [[lamp]] #1 yaw_deg: expected a finite number, found");
+}
+
+TEST(SceneFileErrors, SizesMustBePositiveIntegers) {
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nwidth = -640\n"),
+               "bad.toml:5: [camera] width: expected an integer in [1, 16384], found -640");
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nwidth = 64\nheight = 0\n"),
+               "bad.toml:6: [camera] height: expected an integer in [1, 16384], found 0");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nwidth = 64.5\n"),
+               "bad.toml:5: [camera] width: expected an integer in [1, 16384], found 64.5");
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nwidth = 16385\n"),
+               "found 16385");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = -0.04\n"),
+               "bad.toml:2: [fog] extinction_per_m: expected a number > 0, found -0.04");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nvisibility_m = 0\n"),
+               "bad.toml:2: [fog] visibility_m: expected a number > 0, found 0");
+}
+
+TEST(SceneFileErrors, WrongTypesSayWhatWasFound) {
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = \"bright\"\n"),
+               "bad.toml:10: [[lamp]] #1 intensity_cd: expected a number >= 0, found the string \"bright\"");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0]\n"),
+               "bad.toml:8: [[lamp]] #1 position_m: expected an array of 3 numbers [x, y, z], found an array of 2 "
+               "elements");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = 3\n"),
+               "bad.toml:9: [[lamp]] #1 profile: expected a string, found 3");
+  EXPECT_PRED2(Contains, errorOf("fog = 3\n"), "bad.toml:1: fog: expected a table [fog], found 3");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[lamp]\nposition_m = [0, 0, 0]\n"),
+               "bad.toml:7: lamp: expected an array of tables [[lamp]], found a table");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\nalbedo = true\n"),
+               "bad.toml:3: [fog] albedo: expected a number in [0, 1], found the boolean true");
+}
+
+TEST(SceneFileErrors, KeysOfAnotherModelAreRejected) {
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\nphase = \"isotropic\"\ng = 0.85\n"),
+               "bad.toml:4: [fog] g: only allowed with phase = \"henyey-greenstein\", found phase = \"isotropic\"");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\ng = 0.8\ndroplet_diameter_um = 10\n"),
+               "bad.toml:4: [fog] droplet_diameter_um: only allowed with phase = \"fog-mie\"");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"tiny_lamp.csv\"\nintensity_cd = 5\n"),
+               "bad.toml:10: [[lamp]] #1 intensity_cd: not allowed with a profile file (use scale)");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera +
+                       "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 5\nouter_deg = 5\n"),
+               "bad.toml:11: [[lamp]] #1 outer_deg: only allowed with profile = \"spot\"");
+}
+
+TEST(SceneFileErrors, ValuesOutOfRange) {
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\ng = 1.0\n"),
+               "bad.toml:3: [fog] g: expected a number in (-1, 1), found 1");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\nphase = \"fog-mie\"\ndroplet_diameter_um = 2\n"),
+               "bad.toml:4: [fog] droplet_diameter_um: expected a number in [5, 50], found 2");
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nfov_x_deg = 180\n"),
+               "bad.toml:5: [camera] fov_x_deg: expected a number in (0, 180), found 180");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"spot\"\nintensity_cd = 5\n"
+                                       "inner_deg = 20\nouter_deg = 10\n"),
+               "bad.toml:11: [[lamp]] #1 inner_deg: expected a number in [0, 10), found 20");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"tiny_lamp.csv\"\nscale = 0\n"),
+               "bad.toml:10: [[lamp]] #1 scale: expected a number > 0, found 0");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\ncolor = [1, -0.5, 1]\n"),
+               "bad.toml:9: [[lamp]] #1 color[1]: expected a number >= 0, found -0.5");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 0]\n"),
+               "bad.toml:9: [[plane]] #1 normal: expected a non-zero vector");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 1]\nreflectance = 1.5\n"),
+               "bad.toml:10: [[plane]] #1 reflectance: expected a number in [0, 1], found 1.5");
+}
+
+TEST(SceneFileErrors, LampNamesAreUnique) {
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera +
+                       "[[lamp]]\nname = \"a\"\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 1\n"
+                       "[[lamp]]\nname = \"a\"\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 1\n"),
+               "bad.toml:13: [[lamp]] #2 name: expected a unique name, found \"a\" again (first used by [[lamp]] #1)");
+}
+
+TEST(SceneFileErrors, SyntaxErrorsGiveLineAndColumn) {
+  const std::string msg = errorOf("[fog]\nextinction_per_m = 0.04\nalbedo = = 0.9\n");
+  EXPECT_PRED2(Contains, msg, "bad.toml:3:");
+  EXPECT_PRED2(Contains, errorOf("[fog]\nextinction_per_m = 0.04\nextinction_per_m = 0.05\n"), "bad.toml:3:");
+  EXPECT_PRED2(Contains, errorOf("[[lamp]]\nposition_m = [0, 0, 0\n"), "bad.toml:");
+}
+
+}  // namespace
+}  // namespace fogbeam
