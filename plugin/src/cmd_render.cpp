@@ -3,6 +3,7 @@
 #include "exr_writer.hpp"
 #include "png_writer.hpp"
 
+#include <fogbeam/gl/surface_pass.hpp>
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/surface.hpp>
@@ -18,7 +19,7 @@ namespace fogbeam::cli {
 namespace {
 
 struct RenderOptions {
-  std::string scene, out, png, method = "accurate";
+  std::string scene, out, png, method = "accurate", surface = "auto";
   bool full = false;
   double exposure = 0.0;
   int coarseStep = SubsamplingOptions{}.coarse_step;
@@ -37,14 +38,38 @@ int run(const RenderOptions& o) {
     std::fprintf(stderr, "fogbeam render: %s\n", scene.error().message.c_str());
     return 2;
   }
-  if (scene->gltf_path)
-    std::fprintf(stderr, "fogbeam render: note: the CPU surface pass draws planes only; glTF '%s' is not drawn\n",
-                 scene->gltf_path->c_str());
+  // Surface layer: the GL pass (EGL, headless) when available, else the CPU planes renderer.
   using Clock = std::chrono::steady_clock;
-  auto t0 = Clock::now();
   SurfaceBuffers surface;
-  renderSurfacesCpu(*scene, surface);
-  const double surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  std::string surfaceName = "CPU, planes only";
+  double surfaceMs = 0.0;
+  std::unique_ptr<GlSurfacePass> gl;
+  if (o.surface != "cpu") {
+    auto created = GlSurfacePass::create();
+    if (created) {
+      gl = std::move(created).value();
+    } else if (o.surface == "gl") {
+      std::fprintf(stderr, "fogbeam render: %s\n", created.error().message.c_str());
+      return 1;
+    } else {
+      std::fprintf(stderr, "fogbeam render: note: no GL surface pass (%s); using the CPU planes renderer\n",
+                   created.error().message.c_str());
+    }
+  }
+  auto t0 = Clock::now();
+  if (gl) {
+    if (Status s = gl->render(*scene, surface); !s) {
+      std::fprintf(stderr, "fogbeam render: %s\n", s.error().message.c_str());
+      return 1;
+    }
+    surfaceName = "GL: " + gl->description();
+  } else {
+    if (scene->gltf_path)
+      std::fprintf(stderr, "fogbeam render: note: the CPU surface pass draws planes only; glTF '%s' is not drawn\n",
+                   scene->gltf_path->c_str());
+    renderSurfacesCpu(*scene, surface);
+  }
+  surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
   t0 = Clock::now();
   auto evaluator = AirlightImageEvaluator::build(*scene, *method, {}, o.threads);
@@ -82,7 +107,7 @@ int run(const RenderOptions& o) {
   const std::size_t n = static_cast<std::size_t>(layers.width) * static_cast<std::size_t>(layers.height);
   std::printf("fogbeam render: %s, %dx%d, %zu lamps, method %s\n", o.scene.c_str(), layers.width, layers.height,
               scene->lamps.size(), o.method.c_str());
-  std::printf("  surface pass (CPU, planes)  %8.1f ms\n", surfaceMs);
+  std::printf("  surface pass                %8.1f ms  (%s)\n", surfaceMs, surfaceName.c_str());
   std::printf("  airlight tables             %8.1f ms\n", buildMs);
   std::printf("  airlight                    %8.1f ms  (%zu of %zu pixels evaluated, %.1f %%%s)\n",
               1e3 * airlight.seconds, airlight.evaluated, n,
@@ -116,6 +141,9 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
                   "subsampling: relative error allowed between a block's centre and its bilinear prediction (default 0.005)")
       ->check(CLI::Range(0.0, 1.0));
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
+  sub->add_option("--surface", o->surface,
+                  "surface layer: auto (GL through EGL if available, else CPU), gl (fail without EGL), cpu (planes only)")
+      ->check(CLI::IsMember({"auto", "gl", "cpu"}));
   sub->callback([o, &exitCode] { exitCode = run(*o); });
 }
 

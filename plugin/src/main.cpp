@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   fogbeam::cli::addValidateCommand(app, exitCode);
   fogbeam::cli::addProfileCommand(app, exitCode);
   fogbeam::cli::addRenderCommand(app, exitCode);
+  fogbeam::cli::addBenchCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
 }

@@ -239,8 +239,9 @@ double referenceIntegral(const Context& c, double th0, double thD, double relTol
 double accurateIntegral(const Context& c, const detail::GMomentTable& g, double th0, double thD,
                         const AirlightOptions& opt) {
   const auto& model = c.profile.model();
+  const detail::GMomentTable::KWeights kw = g.kWeights(c.k);
   if (const auto* iso = std::get_if<IsotropicProfile>(&model)) {
-    const auto ta = g.cumulative(c.k, th0), tb = g.cumulative(c.k, thD);
+    const auto ta = g.cumulative(kw, th0), tb = g.cumulative(kw, thD);
     return iso->intensity_cd * (tb[0] - ta[0]);
   }
   std::vector<double> bp{th0, thD};
@@ -296,17 +297,29 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
     } else {
       pieces = std::max(1, static_cast<int>(std::lround(opt.accurate_segments * (b - a) / liveLength)));
     }
-    const double width = (b - a) / pieces;
-    auto tPrev = g.cumulative(c.k, a);
+    const double width = (b - a) / pieces, hw = 0.5 * width;
+    auto tPrev = g.cumulative(kw, a);
     // End samples just inside the interval: at a kink I is continuous for spot edges, but
     // tabulated data may drop to 0 at the edge of the covered range.
     double iPrev = c.intensity(a + 1e-12 * (b - a));
+    // Interior samples sit at a + m·hw; their directions cos θ n + sin θ t follow by rotating
+    // (cos, sin) through hw each step instead of calling sincos per sample.
+    const double cd = std::cos(hw), sd = std::sin(hw);
+    double cs = std::cos(a + hw), sn = std::sin(a + hw);
+    auto nextSample = [&] {
+      const double v = c.profile.intensity(cs * c.n + sn * c.t);
+      const double cs2 = cs * cd - sn * sd;
+      sn = sn * cd + cs * sd;
+      cs = cs2;
+      return v;
+    };
     for (int s = 0; s < pieces; ++s) {
       const double pa = a + s * width, pb = (s + 1 == pieces) ? b : pa + width;
-      const double pm = 0.5 * (pa + pb), hw = 0.5 * (pb - pa);
-      const auto tNext = g.cumulative(c.k, pb);
-      const double im = c.intensity(pm);
-      const double iNext = c.intensity(pb - ((s + 1 == pieces) ? 1e-12 * (b - a) : 0.0));
+      const double pm = 0.5 * (pa + pb);
+      const auto tNext = g.cumulative(kw, pb);
+      const double im = nextSample();
+      double iNext = nextSample();
+      if (s + 1 == pieces) iNext = c.intensity(b - 1e-12 * (b - a));
       const double d0 = tNext[0] - tPrev[0], d1 = tNext[1] - tPrev[1], d2 = tNext[2] - tPrev[2];
       // Moments about the piece centre: ∫ G (θ − pm)^q dθ.
       const double m0 = d0, m1 = d1 - pm * d0, m2 = d2 - 2 * pm * d1 + pm * pm * d0;

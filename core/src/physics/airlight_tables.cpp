@@ -84,7 +84,7 @@ GMomentTable::KWeights GMomentTable::kWeights(double k) const noexcept {
   return kw;
 }
 
-std::array<double, 3> GMomentTable::cumulative(double k, double theta) const noexcept {
+std::array<double, 3> GMomentTable::cumulative(const KWeights& kw, double theta) const noexcept {
   theta = std::clamp(theta, -kHalfPi, kHalfPi);
   const double x = std::clamp(1.0 - 2.0 * (theta + kHalfPi) / kPi, -1.0, 1.0);
   const double tau = std::acos(x) / kPi * (nTheta_ - 1);
@@ -96,7 +96,6 @@ std::array<double, 3> GMomentTable::cumulative(double k, double theta) const noe
   const double s2 = s * s, s3 = s2 * s;
   const double h00 = 2 * s3 - 3 * s2 + 1, h10 = (s3 - 2 * s2 + s) * dt, h01 = -2 * s3 + 3 * s2,
                h11 = (s3 - s2) * dt;
-  const KWeights kw = kWeights(k);
   std::array<double, 3> out{0.0, 0.0, 0.0};
   for (int r = 0; r < 4; ++r) {
     const double* c0 = data_.data() + (static_cast<std::size_t>(kw.row[r]) * static_cast<std::size_t>(nTheta_) +

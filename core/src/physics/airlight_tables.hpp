@@ -24,17 +24,23 @@ class GMomentTable {
  public:
   GMomentTable(const Phase& phase, int nTheta, int nK, double kMax);
 
-  /// T_0, T_1, T_2 at (k, θ); k ∈ [0, kMax], θ ∈ [−π/2, π/2].
-  [[nodiscard]] std::array<double, 3> cumulative(double k, double theta) const noexcept;
-  [[nodiscard]] double kMax() const noexcept { return kMax_; }
-  [[nodiscard]] std::size_t bytes() const noexcept { return data_.size() * sizeof(double); }
-
- private:
+  /// Interpolation weights of the 4 k rows around k: computed once per ray, since every
+  /// lookup along one ray shares its k = K_t h.
   struct KWeights {
     int row[4];
     double w[4];
   };
   [[nodiscard]] KWeights kWeights(double k) const noexcept;
+
+  /// T_0, T_1, T_2 at (k, θ); k ∈ [0, kMax], θ ∈ [−π/2, π/2].
+  [[nodiscard]] std::array<double, 3> cumulative(const KWeights& kw, double theta) const noexcept;
+  [[nodiscard]] std::array<double, 3> cumulative(double k, double theta) const noexcept {
+    return cumulative(kWeights(k), theta);
+  }
+  [[nodiscard]] double kMax() const noexcept { return kMax_; }
+  [[nodiscard]] std::size_t bytes() const noexcept { return data_.size() * sizeof(double); }
+
+ private:
   [[nodiscard]] double thetaAt(int j) const noexcept;
 
   int nTheta_, nK_;

@@ -21,7 +21,8 @@ double clampUnit(double x) { return std::clamp(x, -1.0, 1.0); }
 
 // Linear interpolation position of x in an ascending grid: index i and weight t with
 // x = (1 − t) g[i] + t g[i+1]. Returns false outside [g.front(), g.back()].
-bool locate(const std::vector<double>& g, double x, std::size_t& i, double& t) {
+bool locate(const std::vector<double>& g, const TabulatedProfile::AxisIndex& index, double x, std::size_t& i,
+            double& t) {
   if (g.size() == 1) {
     i = 0;
     t = 0.0;
@@ -29,14 +30,39 @@ bool locate(const std::vector<double>& g, double x, std::size_t& i, double& t) {
   }
   constexpr double eps = 1e-12;  // accept values on the end points despite rounding
   if (x < g.front() - eps || x > g.back() + eps) return false;
-  auto it = std::upper_bound(g.begin(), g.end(), x);
-  std::size_t hi = static_cast<std::size_t>(it - g.begin());
-  if (hi == 0) hi = 1;
-  if (hi >= g.size()) hi = g.size() - 1;
-  i = hi - 1;
-  const double span = g[hi] - g[i];
+  const std::size_t last = g.size() - 2;  // the cell index runs over [0, n − 2]
+  if (!index.first.empty()) {
+    // Bucket start, then a few steps forward: the buckets are narrower than any cell.
+    const double b = std::clamp((x - index.lo) * index.scale, 0.0, static_cast<double>(index.first.size() - 1));
+    i = index.first[static_cast<std::size_t>(b)];
+    while (i < last && g[i + 1] <= x) ++i;
+  } else {
+    auto it = std::upper_bound(g.begin(), g.end(), x);
+    const auto hi = static_cast<std::size_t>(it - g.begin());
+    i = hi == 0 ? 0 : std::min(hi - 1, last);
+  }
+  const double span = g[i + 1] - g[i];
   t = span > 0.0 ? std::clamp((x - g[i]) / span, 0.0, 1.0) : 0.0;
   return true;
+}
+
+TabulatedProfile::AxisIndex makeAxisIndex(const std::vector<double>& g) {
+  TabulatedProfile::AxisIndex index;
+  if (g.size() < 3) return index;  // binary search is as fast
+  double finest = g.back() - g.front();
+  for (std::size_t k = 1; k < g.size(); ++k) finest = std::min(finest, g[k] - g[k - 1]);
+  const double range = g.back() - g.front();
+  const auto buckets = static_cast<std::size_t>(std::min(65536.0, std::ceil(2.0 * range / finest) + 1.0));
+  index.lo = g.front();
+  index.scale = static_cast<double>(buckets - 1) / range;
+  index.first.resize(buckets);
+  std::size_t i = 0;
+  for (std::size_t b = 0; b < buckets; ++b) {
+    const double start = g.front() + static_cast<double>(b) / index.scale;
+    while (i + 1 < g.size() - 1 && g[i + 1] <= start) ++i;
+    index.first[b] = static_cast<std::uint32_t>(i);
+  }
+  return index;
 }
 
 // Folds a type C plane angle C (radians, any value) into the range the data cover.
@@ -231,10 +257,15 @@ Status TabulatedProfile::validate() const {
   return Ok{};
 }
 
+void TabulatedProfile::buildIndex() {
+  horizontalIndex = makeAxisIndex(horizontal);
+  verticalIndex = makeAxisIndex(vertical);
+}
+
 double TabulatedProfile::atAngles(double h, double v) const noexcept {
   std::size_t iv = 0;
   double tv = 0.0;
-  if (!locate(vertical, v, iv, tv)) return 0.0;
+  if (!locate(vertical, verticalIndex, v, iv, tv)) return 0.0;
   const std::size_t nv = vertical.size();
   const std::size_t iv1 = std::min(iv + 1, nv - 1);
   auto row = [&](std::size_t ih) {
@@ -263,7 +294,7 @@ double TabulatedProfile::atAngles(double h, double v) const noexcept {
   }
   std::size_t ih = 0;
   double th = 0.0;
-  if (!locate(horizontal, h, ih, th)) return 0.0;
+  if (!locate(horizontal, horizontalIndex, h, ih, th)) return 0.0;
   const std::size_t ih1 = std::min(ih + 1, horizontal.size() - 1);
   return (1.0 - th) * row(ih) + th * row(ih1);
 }
@@ -339,8 +370,9 @@ Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
       return Error{"spot profile: intensity_cd must be finite and >= 0"};
     if (!(spot->inner >= 0.0 && spot->inner < spot->outer && spot->outer <= kPi))
       return Error{"spot profile: need 0 <= inner_deg < outer_deg <= 180"};
-  } else if (const auto* tab = std::get_if<TabulatedProfile>(&model)) {
+  } else if (auto* tab = std::get_if<TabulatedProfile>(&model)) {
     if (Status s = tab->validate(); !s) return s.error();
+    tab->buildIndex();
   }
   auto p = std::make_shared<Profile>(std::move(model));
   p->support_ = computeSupport(*p);

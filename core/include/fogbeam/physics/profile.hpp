@@ -26,6 +26,7 @@
 #include <fogbeam/physics/math.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <utility>
@@ -79,6 +80,17 @@ struct TabulatedProfile {
 
   /// Checks sizes, ordering and ranges (angles within the type's domain, finite, ≥ 0 cd).
   [[nodiscard]] Status validate() const;
+
+  /// Optional O(1) lookup of the grid cell of an angle: `first[b]` is the last grid index
+  /// whose angle is ≤ the start of bucket b (buckets of width ≤ half the finest spacing).
+  /// Built by buildIndex() (makeProfile calls it); atAngles falls back to binary search
+  /// without it. Derived data: not part of the profile's meaning.
+  struct AxisIndex {
+    double lo = 0.0, scale = 0.0;  ///< bucket = (angle − lo) · scale
+    std::vector<std::uint32_t> first;
+  };
+  AxisIndex horizontalIndex, verticalIndex;
+  void buildIndex();
   /// Bilinear interpolation at file angles (h, v) in radians after symmetry folding; 0 outside.
   [[nodiscard]] double atAngles(double h, double v) const noexcept;
 };

@@ -1,0 +1,86 @@
+// fogbeam — the GL surface pass: lit surfaces through fog and the distance to them, rendered
+// headless through EGL (Mesa's surfaceless platform, or an EGL device such as an NVIDIA GPU).
+//
+// It fills the same SurfaceBuffers as the CPU null renderer renderSurfacesCpu()
+// (fogbeam/render/surface.hpp), with the same equation, per colour channel:
+//
+//   L_s = L(S) e^{−K_t d} + I_a (1 − e^{−K_t d})                     [cd/m²]
+//   L(S) = ρ/π · Σ_lamps colour · I(w) cos(incidence) e^{−K_t r} / r²   (Lambertian, lux → cd/m²)
+//
+// d is the true distance along the pixel's ray (metres, +inf for sky, where L_s = I_a).
+// Geometry: the scene's infinite planes (ray–plane intersection per pixel in a full-screen
+// fragment shader, in double precision) and the triangles of the scene's glTF 2.0 file
+// (rasterised; glTF (x, y, z) → fogbeam (z, x, y), see docs/surface_pass.md). No shadows.
+//
+// This header carries no GL or EGL type; the implementation lives in core/src/gl/.
+// Thread-safety: one GlSurfacePass owns one GL context; use an instance from one thread at a
+// time (render() makes its context current on the calling thread). Separate instances may be
+// used from separate threads.
+#pragma once
+
+#include <fogbeam/render/surface.hpp>
+#include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/result.hpp>
+
+#include <memory>
+#include <string>
+
+namespace fogbeam {
+
+/// How the EGL display is chosen.
+enum class GlPlatform {
+  Auto,         ///< a hardware EGL device (EGL_EXT_platform_device) if one exists, else Mesa surfaceless, else any device
+  Surfaceless,  ///< EGL_MESA_platform_surfaceless (Mesa; llvmpipe where no GPU is present)
+  Device,       ///< EGL_EXT_platform_device with EGL_EXT_device_enumeration, device `device_index`
+};
+
+struct GlOptions {
+  GlPlatform platform = GlPlatform::Auto;
+  int device_index = 0;     ///< Device only: index into eglQueryDevicesEXT's list
+  bool debug_context = false;  ///< request a debug context and log GL debug messages to stderr
+};
+
+/// Timings of the latest render(), milliseconds.
+struct GlSurfaceStats {
+  double surface_ms = 0.0;   ///< GPU time of the surface draws (GL_TIME_ELAPSED; CPU wall time if no timer query)
+  double readback_ms = 0.0;  ///< CPU time waiting for the PBO fence, mapping and copying into SurfaceBuffers
+  double submit_ms = 0.0;    ///< CPU time to upload lamps/planes and issue the draws and the readback
+  std::size_t triangles = 0; ///< glTF triangles drawn
+};
+
+class GlSurfacePass {
+ public:
+  /// Creates the EGL display and an OpenGL 4.5 (4.3 at least) core context, compiles the shaders.
+  /// Fails with a message naming the EGL/GL error (e.g. "eglInitialize failed: EGL_NOT_INITIALIZED")
+  /// and, when no EGL library or display is available, says so.
+  [[nodiscard]] static Result<std::unique_ptr<GlSurfacePass>> create(const GlOptions& options = {});
+
+  ~GlSurfacePass();
+  GlSurfacePass(const GlSurfacePass&) = delete;
+  GlSurfacePass& operator=(const GlSurfacePass&) = delete;
+
+  /// Renders the scene's planes and glTF meshes (loaded on first use, cached by path) and reads
+  /// the result back into `out` (resized to the camera's width × height; row 0 is the top).
+  /// Readback goes through a pixel-pack buffer and a fence (see submit()/collect()).
+  [[nodiscard]] Status render(const Scene& scene, SurfaceBuffers& out);
+
+  /// Pipelined use: submit() issues the draws and an asynchronous readback into one of two PBO
+  /// slots; collect() waits for the oldest submitted frame and copies it into `out`. With two
+  /// frames in flight (submit N+1 before collect N) the CPU never waits for the GPU to finish the
+  /// frame it has just submitted. render() is submit() then collect().
+  [[nodiscard]] Status submit(const Scene& scene);
+  [[nodiscard]] Status collect(SurfaceBuffers& out);
+
+  /// "vendor | renderer | version | EGL platform", e.g. "Mesa | llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core
+  /// Profile) Mesa 22.3.6 | surfaceless".
+  [[nodiscard]] std::string description() const;
+  [[nodiscard]] const GlSurfaceStats& stats() const noexcept;
+
+  struct Impl;
+
+ private:
+  explicit GlSurfacePass(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fogbeam

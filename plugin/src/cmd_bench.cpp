@@ -1,0 +1,538 @@
+// `fogbeam bench`: the paper's headline scene (config/scenes/bench.toml) at simulator sizes.
+//
+// For each image size: median and spread (min–max) over repeated frames of every stage
+// (surface pass, airlight subsampled, airlight full per-pixel, composite) and frames per second
+// of the subsampled pipeline; then, on the last frame, the error of every method against the
+// reference method over a fixed random sample of pixels, and the brute-force ray marcher at the
+// step count whose error matches the accurate method's. Output: a table, and JSON (--json).
+// Each airlight stage gets a time budget (--stage-budget): it runs fewer frames than asked (at
+// least one) when they do not fit, and the full per-pixel stage is measured on evenly spaced
+// rows and extrapolated to the frame when a whole frame does not fit; the table says which.
+#include "commands.hpp"
+
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/raymarch.hpp>
+#include <fogbeam/render/surface.hpp>
+#include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/thread_pool.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#ifndef FOGBEAM_BENCH_SCENE
+#define FOGBEAM_BENCH_SCENE "config/scenes/bench.toml"
+#endif
+#ifndef FOGBEAM_BUILD_TYPE
+#define FOGBEAM_BUILD_TYPE "unknown"
+#endif
+#ifndef FOGBEAM_CXX_FLAGS
+#define FOGBEAM_CXX_FLAGS "unknown"
+#endif
+
+namespace fogbeam::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using json = nlohmann::json;
+
+struct BenchOptions {
+  std::string scene = FOGBEAM_BENCH_SCENE;
+  std::vector<std::string> sizes = {"1280x720", "1920x1080"};
+  int frames = 5;
+  bool quick = false;
+  std::string jsonPath;
+  unsigned threads = 0;
+  int samplePixels = 500;
+  unsigned seed = 1;
+  int fullRows = 64;           // rows of the sampled full per-pixel measurement
+  double stageBudgetSeconds = 30.0;  // wall time allowed to each airlight stage per size
+  int maxRayMarchSteps = 1 << 14;
+};
+
+// Figures of one stage over repeated frames, in milliseconds.
+struct StageStats {
+  std::vector<double> ms;
+  [[nodiscard]] double median() const {
+    std::vector<double> v = ms;
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    if (n == 0) return 0.0;
+    return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  }
+  [[nodiscard]] double min() const { return ms.empty() ? 0.0 : *std::min_element(ms.begin(), ms.end()); }
+  [[nodiscard]] double max() const { return ms.empty() ? 0.0 : *std::max_element(ms.begin(), ms.end()); }
+  [[nodiscard]] json toJson() const {
+    return {{"median_ms", median()}, {"min_ms", min()}, {"max_ms", max()}, {"frames", ms.size()}};
+  }
+};
+
+double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+struct ErrorStats {
+  double median = 0.0, p95 = 0.0, max = 0.0;
+  std::size_t counted = 0;
+  [[nodiscard]] json toJson() const { return {{"median", median}, {"p95", p95}, {"max", max}, {"pixels", counted}}; }
+};
+
+// Percentile by the nearest-rank rule on a sorted copy.
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
+  return v[std::min(v.size() - 1, rank == 0 ? 0 : rank - 1)];
+}
+
+// Relative error of `value` against `ref` (luminance: mean of the channels) over the pixels
+// whose reference luminance exceeds the threshold.
+constexpr double kRefThresholdCdM2 = 1e-4;
+ErrorStats relativeErrors(const std::vector<double>& value, const std::vector<double>& ref) {
+  std::vector<double> rel;
+  for (std::size_t k = 0; k < ref.size(); ++k)
+    if (ref[k] > kRefThresholdCdM2) rel.push_back(std::abs(value[k] - ref[k]) / ref[k]);
+  ErrorStats e;
+  e.counted = rel.size();
+  e.median = percentile(rel, 0.5);
+  e.p95 = percentile(rel, 0.95);
+  e.max = rel.empty() ? 0.0 : *std::max_element(rel.begin(), rel.end());
+  return e;
+}
+
+double luminance(const float rgb[3]) {
+  return (static_cast<double>(rgb[0]) + static_cast<double>(rgb[1]) + static_cast<double>(rgb[2])) / 3.0;
+}
+
+struct SamplePixel {
+  int i, j;
+};
+
+// Evaluates `fn` (a per-ray "sum over lamps") on every sample pixel in parallel; returns the
+// luminances and the wall time in ms.
+template <class Fn>
+double evaluateSample(ThreadPool& pool, const Camera& cam, const SurfaceBuffers& surf, const std::vector<SamplePixel>& px,
+                      const Fn& fn, std::vector<double>& out) {
+  out.assign(px.size(), 0.0);
+  const auto t0 = Clock::now();
+  pool.parallelFor(px.size(), [&](std::size_t k) {
+    const SamplePixel p = px[k];
+    const std::size_t idx =
+        static_cast<std::size_t>(p.j) * static_cast<std::size_t>(cam.width) + static_cast<std::size_t>(p.i);
+    const Ray ray{cam.position_m, cam.rayDirection(p.i + 0.5, p.j + 0.5), static_cast<double>(surf.distance[idx])};
+    float rgb[3];
+    fn(ray, rgb);
+    out[k] = luminance(rgb);
+  });
+  return msSince(t0);
+}
+
+// Full per-pixel airlight on `rows` evenly spaced rows (every pixel of each), in parallel over
+// pixels; returns the wall time in ms.
+double evaluateRows(ThreadPool& pool, const AirlightImageEvaluator& ev, const Camera& cam, const SurfaceBuffers& surf,
+                    const std::vector<int>& rows) {
+  const auto w = static_cast<std::size_t>(cam.width);
+  const auto t0 = Clock::now();
+  pool.parallelFor(rows.size() * w, [&](std::size_t k) {
+    const int i = static_cast<int>(k % w);
+    const int j = rows[k / w];
+    const std::size_t idx = static_cast<std::size_t>(j) * w + static_cast<std::size_t>(i);
+    const Ray ray{cam.position_m, cam.rayDirection(i + 0.5, j + 0.5), static_cast<double>(surf.distance[idx])};
+    float rgb[3];
+    ev.evaluateRay(ray, rgb);
+  });
+  return msSince(t0);
+}
+
+std::vector<int> evenlySpacedRows(int height, int count) {
+  std::vector<int> rows;
+  count = std::clamp(count, 1, height);
+  for (int r = 0; r < count; ++r) rows.push_back(static_cast<int>((static_cast<long long>(r) * height + height / 2) / count) % height);
+  return rows;
+}
+
+std::string cpuModel() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) {
+      const auto colon = line.find(':');
+      if (colon != std::string::npos) return line.substr(line.find_first_not_of(" \t", colon + 1));
+    }
+  return "unknown";
+}
+
+// The compile flags as CMake composed them, without the blanks an empty CMAKE_CXX_FLAGS leaves.
+std::string compileFlags() {
+  std::string f = FOGBEAM_CXX_FLAGS;
+  const auto b = f.find_first_not_of(' '), e = f.find_last_not_of(' ');
+  return b == std::string::npos ? std::string() : f.substr(b, e - b + 1);
+}
+
+bool parseSize(const std::string& s, int& w, int& h) {
+  const auto x = s.find('x');
+  if (x == std::string::npos) return false;
+  try {
+    std::size_t a = 0, b = 0;
+    w = std::stoi(s.substr(0, x), &a);
+    h = std::stoi(s.substr(x + 1), &b);
+    return a == x && b == s.size() - x - 1 && w > 0 && h > 0 && w <= 16384 && h <= 16384;
+  } catch (...) {
+    return false;
+  }
+}
+
+struct Evaluators {
+  AirlightImageEvaluator reference, seed, accurate;
+};
+
+// One image size: every figure of the table, as JSON (the table is printed from it).
+json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool) {
+  scene.camera.width = width;
+  scene.camera.height = height;
+  const Camera& cam = scene.camera;
+  const std::size_t nPixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  json r;
+  r["width"] = width;
+  r["height"] = height;
+  r["pixels"] = nPixels;
+
+  // Surface pass: CPU planes (the analytic null renderer).
+  SurfaceBuffers surface;
+  StageStats surfaceStats;
+  for (int f = 0; f < o.frames; ++f) {
+    const auto t0 = Clock::now();
+    renderSurfacesCpu(scene, surface);
+    surfaceStats.ms.push_back(msSince(t0));
+  }
+  // ---- GL surface pass (fogbeam_gl, EGL): not wired into this build yet. When it is, time
+  // ---- its draw and its readback here as separate stages ("surface_gl", "readback_gl") on
+  // ---- the same scene and size, and use its buffers for the stages below.
+  json glSurface = {{"available", false}, {"note", "GL: not available in this build"}};
+
+  // Airlight, accurate method, adaptive subsampling.
+  // At least one frame; further frames while they fit the stage budget.
+  AirlightImage sub;
+  StageStats subStats;
+  double subTotalMs = 0.0;
+  for (int f = 0; f < o.frames; ++f) {
+    if (f > 0 && subTotalMs + subStats.ms.back() > 1e3 * o.stageBudgetSeconds) break;
+    const auto t0 = Clock::now();
+    ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
+    subStats.ms.push_back(msSince(t0));
+    subTotalMs += subStats.ms.back();
+  }
+
+  // Airlight, accurate method, full per-pixel: the whole frame when it fits the time budget,
+  // otherwise every pixel of `fullRows` evenly spaced rows, extrapolated to the frame.
+  const std::vector<int> probeRows = evenlySpacedRows(height, 8);
+  const double probeMs = evaluateRows(pool, ev.accurate, cam, surface, probeRows);
+  const double estimateFrameMs = probeMs * height / static_cast<double>(probeRows.size());
+  StageStats fullStats;
+  bool fullExtrapolated = false;
+  int measuredRows = height;
+  std::size_t fullEvaluated = 0;
+  if (estimateFrameMs <= 1e3 * o.stageBudgetSeconds) {
+    const int nFrames = std::clamp(static_cast<int>(1e3 * o.stageBudgetSeconds / std::max(estimateFrameMs, 1e-3)), 1, o.frames);
+    AirlightImage full;
+    for (int f = 0; f < nFrames; ++f) {
+      const auto t0 = Clock::now();
+      ev.accurate.evaluate(scene, surface, SubsamplingOptions{.full = true}, full);
+      fullStats.ms.push_back(msSince(t0));
+    }
+    fullEvaluated = full.evaluated;
+  } else {
+    fullExtrapolated = true;
+    const std::vector<int> rows = evenlySpacedRows(height, o.fullRows);
+    measuredRows = static_cast<int>(rows.size());
+    const double estimateRowsMs = estimateFrameMs * measuredRows / height;
+    const int nFrames = std::clamp(static_cast<int>(1e3 * o.stageBudgetSeconds / std::max(estimateRowsMs, 1e-3)), 1, o.frames);
+    for (int f = 0; f < nFrames; ++f)
+      fullStats.ms.push_back(evaluateRows(pool, ev.accurate, cam, surface, rows) * height / measuredRows);
+    fullEvaluated = nPixels;
+  }
+
+  // Composite.
+  FrameLayers layers;
+  StageStats compStats;
+  for (int f = 0; f < o.frames; ++f) {
+    const auto t0 = Clock::now();
+    compositeFrame(scene.fog, surface, sub, layers);
+    compStats.ms.push_back(msSince(t0));
+  }
+  const double pipelineMs = surfaceStats.median() + subStats.median() + compStats.median();
+
+  json stages;
+  stages["surface_cpu_planes"] = surfaceStats.toJson();
+  stages["surface_gl"] = glSurface;
+  stages["airlight_subsampled"] = subStats.toJson();
+  stages["airlight_subsampled"]["evaluated_pixels"] = sub.evaluated;
+  stages["airlight_full"] = fullStats.toJson();
+  stages["airlight_full"]["evaluated_pixels"] = fullEvaluated;
+  stages["airlight_full"]["measured_rows"] = measuredRows;
+  stages["airlight_full"]["extrapolated_from_rows"] = fullExtrapolated;
+  stages["composite"] = compStats.toJson();
+  r["stages"] = stages;
+  r["pipeline_subsampled_ms"] = pipelineMs;
+  r["fps_subsampled"] = pipelineMs > 0.0 ? 1e3 / pipelineMs : 0.0;
+
+  // Accuracy on this frame: a fixed random sample of pixels.
+  std::mt19937 rng(o.seed);
+  std::uniform_int_distribution<int> di(0, width - 1), dj(0, height - 1);
+  std::vector<SamplePixel> px(static_cast<std::size_t>(o.samplePixels));
+  for (SamplePixel& p : px) {
+    p.i = di(rng);
+    p.j = dj(rng);
+  }
+  auto rayFn = [](const AirlightImageEvaluator& e) {
+    return [&e](const Ray& ray, float rgb[3]) { e.evaluateRay(ray, rgb); };
+  };
+  std::vector<double> lRef, lSeed, lAcc, lSub(px.size());
+  const double refMs = evaluateSample(pool, cam, surface, px, rayFn(ev.reference), lRef);
+  const double seedMs = evaluateSample(pool, cam, surface, px, rayFn(ev.seed), lSeed);
+  const double accMs = evaluateSample(pool, cam, surface, px, rayFn(ev.accurate), lAcc);
+  for (std::size_t k = 0; k < px.size(); ++k) {
+    const std::size_t idx = static_cast<std::size_t>(px[k].j) * static_cast<std::size_t>(width) + static_cast<std::size_t>(px[k].i);
+    lSub[k] = luminance(&sub.rgb[3 * idx]);
+  }
+  const ErrorStats eSeed = relativeErrors(lSeed, lRef), eAcc = relativeErrors(lAcc, lRef),
+                   eSub = relativeErrors(lSub, lRef), eSubFull = relativeErrors(lSub, lAcc);
+  const double perPixel = 1.0 / static_cast<double>(px.size());
+  json acc;
+  acc["sample_pixels"] = px.size();
+  acc["seed"] = o.seed;
+  acc["reference_threshold_cd_m2"] = kRefThresholdCdM2;
+  acc["luminance"] = "mean of R, G, B (white lamps: cd/m2)";
+  acc["seed_method"] = eSeed.toJson();
+  acc["accurate_full"] = eAcc.toJson();
+  acc["accurate_subsampled"] = eSub.toJson();
+  acc["subsampled_vs_full"] = eSubFull.toJson();
+  acc["cost_us_per_pixel"] = {{"reference", 1e3 * refMs * perPixel},
+                              {"seed", 1e3 * seedMs * perPixel},
+                              {"accurate", 1e3 * accMs * perPixel}};
+  // Where the accurate method's time goes: each lamp alone on the same sample.
+  json byLamp = json::array();
+  for (const SceneLamp& sl : scene.lamps) {
+    auto one = AirlightEvaluator::build(sl.lamp, scene.fog, AirlightMethod::Accurate);
+    if (!one) continue;
+    std::vector<double> l;
+    const double ms = evaluateSample(pool, cam, surface, px,
+                                     [&e = *one](const Ray& ray, float rgb[3]) {
+                                       rgb[0] = rgb[1] = rgb[2] = static_cast<float>(e.evaluate(ray));
+                                     },
+                                     l);
+    byLamp.push_back({{"lamp", sl.name}, {"us_per_pixel", 1e3 * ms * perPixel}});
+  }
+  acc["accurate_cost_us_per_pixel_by_lamp"] = byLamp;
+
+  // The ray marcher: the smallest power-of-two step count whose p95 matches the accurate one.
+  json tried = json::array();
+  json rm;
+  bool matched = false;
+  for (int steps = 16; steps <= o.maxRayMarchSteps; steps *= 2) {
+    auto marcher = RayMarchEvaluator::build(scene, steps);
+    if (!marcher) {
+      rm["error"] = marcher.error().message;
+      break;
+    }
+    std::vector<double> lRm;
+    const double rmMs = evaluateSample(pool, cam, surface, px,
+                                       [&m = *marcher](const Ray& ray, float rgb[3]) { m.evaluateRay(ray, rgb); }, lRm);
+    const ErrorStats e = relativeErrors(lRm, lRef);
+    const double usPerPixel = 1e3 * rmMs * perPixel;
+    tried.push_back({{"steps", steps}, {"median", e.median}, {"p95", e.p95}, {"us_per_pixel", usPerPixel}});
+    rm = {{"steps", steps}, {"median", e.median}, {"p95", e.p95}, {"us_per_pixel", usPerPixel},
+          {"full_frame_ms_extrapolated", 1e-3 * usPerPixel * static_cast<double>(nPixels)}};
+    if (e.p95 <= eAcc.p95) {
+      matched = true;
+      break;
+    }
+  }
+  const double accurateFullMs = fullStats.median();
+  rm["matched_accurate_p95"] = matched;
+  rm["accurate_full_frame_ms"] = accurateFullMs;
+  if (rm.contains("full_frame_ms_extrapolated") && accurateFullMs > 0.0)
+    rm["speed_ratio"] = rm["full_frame_ms_extrapolated"].get<double>() / accurateFullMs;
+  rm["tried"] = tried;
+  acc["raymarch"] = rm;
+  r["accuracy"] = acc;
+  return r;
+}
+
+void printStage(const char* name, const json& s, const char* note = "") {
+  std::printf("  %-30s %9.2f ms  [%9.2f – %9.2f]  %2d frame%s%s\n", name, s["median_ms"].get<double>(),
+              s["min_ms"].get<double>(), s["max_ms"].get<double>(), s["frames"].get<int>(),
+              s["frames"].get<int>() == 1 ? " " : "s", note);
+}
+
+void printError(const char* name, const json& e) {
+  std::printf("  %-30s median %8.2e   p95 %8.2e   max %8.2e   (%d pixels)\n", name, e["median"].get<double>(),
+              e["p95"].get<double>(), e["max"].get<double>(), e["pixels"].get<int>());
+}
+
+void printSize(const json& r) {
+  const int w = r["width"].get<int>(), h = r["height"].get<int>();
+  const double n = r["pixels"].get<double>();
+  const json& s = r["stages"];
+  std::printf("\n%d x %d (%.0f pixels)       median       [min – max]\n", w, h, n);
+  printStage("surface (CPU planes)", s["surface_cpu_planes"]);
+  std::printf("  %-30s %s\n", "surface + readback (GL)", s["surface_gl"]["note"].get<std::string>().c_str());
+  char note[160];
+  std::snprintf(note, sizeof note, "  %zu px evaluated (%.1f %%)", s["airlight_subsampled"]["evaluated_pixels"].get<std::size_t>(),
+                100.0 * s["airlight_subsampled"]["evaluated_pixels"].get<double>() / n);
+  printStage("airlight accurate, subsampled", s["airlight_subsampled"], note);
+  if (s["airlight_full"]["extrapolated_from_rows"].get<bool>())
+    std::snprintf(note, sizeof note, "  all px; measured on %d evenly spaced rows of %d, extrapolated",
+                  s["airlight_full"]["measured_rows"].get<int>(), h);
+  else
+    std::snprintf(note, sizeof note, "  all px, whole frame");
+  printStage("airlight accurate, full", s["airlight_full"], note);
+  printStage("composite", s["composite"]);
+  std::printf("  %-30s %9.2f ms  = %.1f frames/s (surface CPU + airlight subsampled + composite)\n",
+              "pipeline, subsampled", r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>());
+
+  const json& a = r["accuracy"];
+  std::printf("  error vs reference on %d random pixels (seed %u), counted where reference > %.0e cd/m2:\n",
+              a["sample_pixels"].get<int>(), a["seed"].get<unsigned>(), a["reference_threshold_cd_m2"].get<double>());
+  printError("seed", a["seed_method"]);
+  printError("accurate, full", a["accurate_full"]);
+  printError("accurate, subsampled", a["accurate_subsampled"]);
+  printError("subsampled vs full (accurate)", a["subsampled_vs_full"]);
+  const json& c = a["cost_us_per_pixel"];
+  std::printf("  %-30s reference %.1f, seed %.2f, accurate %.2f us (wall, all threads)\n", "cost per pixel on the sample",
+              c["reference"].get<double>(), c["seed"].get<double>(), c["accurate"].get<double>());
+  std::printf("  %-30s", "accurate cost per lamp (us/px)");
+  for (const json& l : a["accurate_cost_us_per_pixel_by_lamp"])
+    std::printf(" %s %.1f;", l["lamp"].get<std::string>().c_str(), l["us_per_pixel"].get<double>());
+  std::printf("\n");
+  const json& rm = a["raymarch"];
+  std::printf("  ray marcher (midpoint rule, fixed N), p95 per N:");
+  for (const json& t : rm["tried"]) std::printf(" %d:%.1e", t["steps"].get<int>(), t["p95"].get<double>());
+  std::printf("\n");
+  if (rm.contains("steps")) {
+    std::printf("  %-30s N = %d%s: p95 %.2e (accurate %.2e), %.2f us/px -> %.0f ms/frame vs accurate full %.1f ms",
+                "ray marcher at equal error", rm["steps"].get<int>(), rm["matched_accurate_p95"].get<bool>() ? "" : " (largest tried: NOT matched)",
+                rm["p95"].get<double>(), a["accurate_full"]["p95"].get<double>(), rm["us_per_pixel"].get<double>(),
+                rm["full_frame_ms_extrapolated"].get<double>(), rm["accurate_full_frame_ms"].get<double>());
+    if (rm.contains("speed_ratio"))
+      std::printf(" = accurate %.1fx %s", rm["speed_ratio"].get<double>(), rm["matched_accurate_p95"].get<bool>() ? "faster" : "faster (lower bound)");
+    std::printf("\n");
+  }
+}
+
+int run(BenchOptions o) {
+  if (o.quick) {
+    o.sizes = {"320x180"};
+    o.frames = 2;
+    o.stageBudgetSeconds = 3.0;
+  }
+  std::vector<std::pair<int, int>> sizes;
+  for (const std::string& s : o.sizes) {
+    int w = 0, h = 0;
+    if (!parseSize(s, w, h)) {
+      std::fprintf(stderr, "fogbeam bench: --sizes: expected WIDTHxHEIGHT (e.g. 1280x720), got '%s'\n", s.c_str());
+      return 2;
+    }
+    sizes.emplace_back(w, h);
+  }
+  auto scene = loadScene(o.scene);
+  if (!scene) {
+    std::fprintf(stderr, "fogbeam bench: %s\n", scene.error().message.c_str());
+    return 2;
+  }
+  const unsigned threads = o.threads == 0 ? std::max(1u, std::thread::hardware_concurrency()) : o.threads;
+  const std::string cpu = cpuModel();
+  std::printf("fogbeam bench: %s\n", o.scene.c_str());
+  std::printf("  machine   %s, %u logical cores; %u threads\n", cpu.c_str(), std::thread::hardware_concurrency(), threads);
+  std::printf("  compiler  GCC %s; build type %s; flags '%s'\n", __VERSION__, FOGBEAM_BUILD_TYPE, compileFlags().c_str());
+  std::printf("  scene     %zu lamps, %zu planes, K_t %.4f /m, %s; road: a plane (the glTF default road scene does not exist yet)\n",
+              scene->lamps.size(), scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str());
+  std::printf("  surface   CPU planes; GL: not available in this build\n");
+
+  const auto t0 = Clock::now();
+  auto ref = AirlightImageEvaluator::build(*scene, AirlightMethod::Reference, {}, threads);
+  auto seed = AirlightImageEvaluator::build(*scene, AirlightMethod::Seed, {}, threads);
+  const auto tAcc = Clock::now();
+  auto acc = AirlightImageEvaluator::build(*scene, AirlightMethod::Accurate, {}, threads);
+  const double accBuildMs = msSince(tAcc), buildMs = msSince(t0);
+  for (const auto* e : {&ref, &seed, &acc})
+    if (!*e) {
+      std::fprintf(stderr, "fogbeam bench: %s\n", e->error().message.c_str());
+      return 2;
+    }
+  std::printf("  tables    %.0f ms for all three methods (accurate %.0f ms)\n", buildMs, accBuildMs);
+  Evaluators ev{std::move(ref).value(), std::move(seed).value(), std::move(acc).value()};
+  ThreadPool pool(threads);
+
+  json root;
+  root["machine"] = {{"cpu", cpu}, {"logical_cores", std::thread::hardware_concurrency()}};
+  root["compiler"] = std::string("GCC ") + __VERSION__;
+  root["build_type"] = FOGBEAM_BUILD_TYPE;
+  root["flags"] = compileFlags();
+  root["threads"] = threads;
+  root["scene"] = {{"file", o.scene},
+                   {"lamps", scene->lamps.size()},
+                   {"planes", scene->planes.size()},
+                   {"extinction_per_m", scene->fog.extinction_per_m},
+                   {"phase", describe(scene->fog.phase)},
+                   {"road", "plane (the glTF default road scene does not exist yet)"}};
+  root["gl"] = {{"available", false}, {"note", "GL: not available in this build"}};
+  root["frames"] = o.frames;
+  root["table_build_ms"] = {{"all", buildMs}, {"accurate", accBuildMs}};
+  root["sizes"] = json::array();
+  for (const auto& [w, h] : sizes) {
+    json r = benchSize(*scene, w, h, o, ev, pool);
+    printSize(r);
+    std::fflush(stdout);
+    root["sizes"].push_back(std::move(r));
+  }
+  if (!o.jsonPath.empty()) {
+    std::ofstream out(o.jsonPath);
+    out << root.dump(2) << '\n';
+    if (!out) {
+      std::fprintf(stderr, "fogbeam bench: %s: cannot write\n", o.jsonPath.c_str());
+      return 1;
+    }
+    std::printf("\nwrote %s\n", o.jsonPath.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+void addBenchCommand(CLI::App& app, int& exitCode) {
+  auto o = std::make_shared<BenchOptions>();
+  auto* sub = app.add_subcommand("bench", "Time every stage of a frame on the paper's headline scene and measure the "
+                                          "error of each airlight method (and a ray marcher) against the reference");
+  sub->add_option("--scene", o->scene, "scene file (default: the shipped config/scenes/bench.toml)")
+      ->check(CLI::ExistingFile);
+  sub->add_option("--sizes", o->sizes, "image sizes WIDTHxHEIGHT, comma-separated (default 1280x720,1920x1080)")
+      ->delimiter(',');
+  sub->add_option("--frames", o->frames, "repeated frames per stage (default 5)")->check(CLI::Range(1, 1000));
+  sub->add_flag("--quick", o->quick, "CI mode: 320x180, 2 frames");
+  sub->add_option("--json", o->jsonPath, "also write every figure to this JSON file");
+  sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
+  sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
+      ->check(CLI::Range(10, 1000000));
+  sub->add_option("--stage-budget", o->stageBudgetSeconds,
+                  "seconds allowed to each airlight stage per size: fewer frames (at least 1), and the full "
+                  "per-pixel stage measured on evenly spaced rows and extrapolated when a whole frame does not fit "
+                  "(default 30; --quick: 3)")
+      ->check(CLI::Range(0.0, 3600.0));
+  sub->add_option("--max-raymarch-steps", o->maxRayMarchSteps,
+                  "largest ray-marcher step count tried (powers of two from 16; default 16384)")
+      ->check(CLI::Range(16, 1 << 20));
+  sub->callback([o, &exitCode] { exitCode = run(*o); });
+}
+
+}  // namespace fogbeam::cli

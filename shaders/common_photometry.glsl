@@ -1,0 +1,175 @@
+// fogbeam — common_photometry.glsl: lamp intensity I(w) and Lambertian surface luminance.
+// Included by surface_*.frag (after their #version line). Units: metres, radians, candela,
+// lux, cd/m². Positions are relative to the camera (world axes: x forward, y left, z up), so
+// that single precision keeps millimetres at kilometres from the world origin.
+//
+//   E = I(w) · cos(incidence) · e^{−K_t r} / r²            [lux]   per lamp, w = (X − S)/r
+//   L(S) = ρ/π · Σ_lamps colour · E                         [cd/m²] Lambertian
+//   L_s = L(S) · e^{−K_t d} + I_a · (1 − e^{−K_t d})         [cd/m²] seen through fog at distance d
+//
+// I(w) is evaluated in the lamp frame (+x photometric axis, +y left, +z up):
+//   isotropic: I₀;  spot: I₀ for ψ ≤ inner, I₀ (outer − ψ)/(outer − inner) to 0 at outer
+//   (ψ = angle from +x);  tabulated: the file's (h, v) angles of w for type A/B/C, symmetry
+//   folding, then bilinear interpolation on the file's own grid — the same as
+//   TabulatedProfile::atAngles (core/src/physics/profile.cpp), so cut-offs are exactly where the
+//   file puts them. The grid is uploaded unresampled in a buffer texture (R32F):
+//   [h angles (nh)] [v angles (nv)] [candela (nh × nv), candela[ih·nv + iv]].
+
+const float PI = 3.14159265358979;
+const float TWO_PI = 6.28318530717959;
+const float HALF_PI = 1.57079632679490;
+
+const int KIND_ISOTROPIC = 0;
+const int KIND_SPOT = 1;
+const int KIND_TABULATED = 2;
+const int TYPE_A = 0;
+const int TYPE_B = 1;
+const int TYPE_C = 2;
+const int SYM_NONE = 0;
+const int SYM_ROTATIONAL = 1;
+const int SYM_QUADRANT = 2;
+const int SYM_HALF_0_180 = 3;
+const int SYM_HALF_90_270 = 4;
+const int SYM_MIRROR_H = 5;
+
+struct LampGpu {
+  vec4 position;  // xyz: lamp position relative to the camera [m]
+  vec4 axisX;     // xyz: lamp +x (photometric axis) in world
+  vec4 axisY;     // xyz: lamp +y in world
+  vec4 axisZ;     // xyz: lamp +z in world
+  vec4 color;     // rgb: linear colour weights
+  vec4 params;    // x: I₀ [cd] (isotropic, spot peak) or scale (tabulated); y: inner, z: outer [rad]
+  ivec4 kind;     // x: KIND_*, y: TYPE_*, z: SYM_*
+  ivec4 table;    // x: offset of the h angles in uProfileData, y: nh, z: nv
+};
+
+layout(std430, binding = 0) readonly buffer Lamps { LampGpu lamps[]; };
+uniform int uLampCount;      // lamps used (the buffer holds at least one entry)
+layout(binding = 0) uniform samplerBuffer uProfileData;  // R32F: angles [rad], candela [cd]
+uniform float uExtinction;  // K_t [1/m]
+uniform float uAmbient;     // I_a [cd/m²]
+
+float profileValue(int i) { return texelFetch(uProfileData, i).r; }
+
+// Position of x in the ascending grid g[off .. off+n): the largest i ≤ n − 2 with g[i] ≤ x and
+// the weight t of g[i+1]. False outside [g₀, g_{n−1}] (1e-6 rad of slack for rounding).
+bool locateGrid(int off, int n, float x, out int i, out float t) {
+  i = 0;
+  t = 0.0;
+  if (n == 1) return abs(x - profileValue(off)) < 1e-6;
+  if (x < profileValue(off) - 1e-6 || x > profileValue(off + n - 1) + 1e-6) return false;
+  int lo = 0, hi = n - 1;
+  while (hi - lo > 1) {
+    int mid = (lo + hi) / 2;
+    if (profileValue(off + mid) <= x) lo = mid; else hi = mid;
+  }
+  i = lo;
+  float a = profileValue(off + lo), b = profileValue(off + lo + 1);
+  t = b > a ? clamp((x - a) / (b - a), 0.0, 1.0) : 0.0;
+  return true;
+}
+
+// Folds a type C plane angle into the range the data cover (see foldTypeC in profile.cpp).
+float foldTypeC(float c, int sym) {
+  c = mod(c, TWO_PI);
+  if (sym == SYM_QUADRANT) {
+    if (c > PI) c = TWO_PI - c;
+    if (c > HALF_PI) c = PI - c;
+  } else if (sym == SYM_HALF_0_180) {
+    if (c > PI) c = TWO_PI - c;
+  } else if (sym == SYM_HALF_90_270) {
+    if (c < HALF_PI) c = PI - c;
+    else if (c > 1.5 * PI) c = 3.0 * PI - c;
+  }
+  return c;
+}
+
+// atan(y, x) that is 0 where GLSL leaves it undefined (x = y = 0).
+float atan2Safe(float y, float x) { return (x == 0.0 && y == 0.0) ? 0.0 : atan(y, x); }
+
+float tabulatedIntensity(LampGpu L, vec3 w) {
+  int type = L.kind.y, sym = L.kind.z;
+  int offH = L.table.x, nh = L.table.y, nv = L.table.z;
+  int offV = offH + nh, offC = offV + nv;
+  float h, v;
+  if (type == TYPE_C) {         // C about +x from +y towards +z; γ from +x
+    h = atan2Safe(w.z, w.y);
+    v = atan(length(w.yz), w.x);
+  } else if (type == TYPE_B) {  // H positive to the right (−y); V about y, positive up
+    h = atan(-w.y, length(w.xz));
+    v = atan2Safe(w.z, w.x);
+  } else {                      // type A: H about z, positive right; V elevation
+    h = atan2Safe(-w.y, w.x);
+    v = atan(w.z, length(w.xy));
+  }
+  int iv;
+  float tv;
+  if (!locateGrid(offV, nv, v, iv, tv)) return 0.0;
+  int iv1 = min(iv + 1, nv - 1);
+  int ih0 = 0, ih1 = 0;
+  float th = 0.0;
+  if (!(nh == 1 || sym == SYM_ROTATIONAL)) {
+    float hFirst = profileValue(offH), hLast = profileValue(offH + nh - 1);
+    bool located = false;
+    if (type == TYPE_C) {
+      h = foldTypeC(h, sym);
+      if (sym == SYM_NONE && (h > hLast || h < hFirst)) {  // between the last plane and the first + 360°
+        float span = hFirst + TWO_PI - hLast;
+        ih0 = nh - 1;
+        ih1 = 0;
+        th = span > 0.0 ? ((h > hLast ? h : h + TWO_PI) - hLast) / span : 0.0;
+        located = true;
+      }
+    } else if (sym == SYM_MIRROR_H) {
+      h = abs(h);
+    }
+    if (!located) {
+      if (!locateGrid(offH, nh, h, ih0, th)) return 0.0;
+      ih1 = min(ih0 + 1, nh - 1);
+    }
+  }
+  float r0 = mix(profileValue(offC + ih0 * nv + iv), profileValue(offC + ih0 * nv + iv1), tv);
+  float r1 = mix(profileValue(offC + ih1 * nv + iv), profileValue(offC + ih1 * nv + iv1), tv);
+  return mix(r0, r1, th);
+}
+
+// I(w) [cd] of lamp L towards the unit world direction wWorld.
+float lampIntensity(LampGpu L, vec3 wWorld) {
+  vec3 w = vec3(dot(L.axisX.xyz, wWorld), dot(L.axisY.xyz, wWorld), dot(L.axisZ.xyz, wWorld));
+  if (L.kind.x == KIND_ISOTROPIC) return L.params.x;
+  if (L.kind.x == KIND_SPOT) {
+    float psi = atan(length(w.yz), w.x);  // accurate near the axis, unlike acos(w.x)
+    if (psi <= L.params.y) return L.params.x;
+    if (psi >= L.params.z) return 0.0;
+    return L.params.x * (L.params.z - psi) / (L.params.z - L.params.y);
+  }
+  return L.params.x * tabulatedIntensity(L, w);
+}
+
+// L(S) [cd/m², rgb] of a Lambertian point p (camera-relative, m) with unit normal n facing the
+// viewer and reflectance rho, lit by every lamp through fog (no shadows).
+vec3 surfaceLuminance(vec3 p, vec3 n, vec3 rho) {
+  vec3 sum = vec3(0.0);
+  for (int k = 0; k < uLampCount; ++k) {
+    vec3 toPoint = p - lamps[k].position.xyz;
+    float r2 = dot(toPoint, toPoint);
+    if (r2 <= 0.0) continue;
+    float r = sqrt(r2);
+    vec3 w = toPoint / r;
+    float cosInc = -dot(w, n);  // light arrives against the normal
+    if (cosInc <= 0.0) continue;
+    float e = lampIntensity(lamps[k], w) * cosInc * exp(-uExtinction * r) / r2;  // lux
+    sum += lamps[k].color.rgb * e;
+  }
+  return rho / PI * sum;
+}
+
+// L_s [cd/m²]: surface luminance seen through fog at distance d plus ambient in-scatter.
+vec3 viewedThroughFog(vec3 surface, float d) {
+  float T = exp(-uExtinction * d);
+  return surface * T + vec3(uAmbient * (1.0 - T));
+}
+
+// Depth-buffer value for the true distance d [m]: 1/(1 + d), compared with GL_GREATER on a
+// 32-bit float depth buffer (relative precision ≈ 1e-7 at every distance; 0 = sky).
+float depthFromDistance(float d) { return 1.0 / (1.0 + d); }

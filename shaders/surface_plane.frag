@@ -1,0 +1,51 @@
+#version 450 core
+// fogbeam — surface_plane.frag: infinite Lambertian planes by ray–plane intersection per pixel.
+// Units: metres, cd/m². The ray of pixel (i, j) goes through its centre, as Camera::rayDirection:
+//   local = (f, W/2 − x, H/2 − y_down) = (f, W/2 − gl_FragCoord.x, gl_FragCoord.y − H/2)   (camera frame)
+//   ω = normalize(worldFromCamera · local)
+// Plane n·(X − P₀) = 0 with c = n·(P₀ − O) (camera-relative): t = c / (n·ω), the nearest t > 0 wins.
+// The ray and t are computed in double precision so that the distance stays within ~1e-7
+// relative even at grazing incidence near the horizon. Outputs:
+//   location 0: L_s = L(S) e^{−K_t t} + I_a (1 − e^{−K_t t})  [cd/m², rgb; a = 1]
+//   location 1: t, the true distance along the ray [m]
+// Pixels where no plane is hit are discarded (they keep the sky clear values: I_a and +inf).
+#include "common_photometry.glsl"
+
+struct PlaneGpu {
+  dvec4 normalOffset;  // xyz: unit normal n (world), w: c = n·(P₀ − O) [m]
+  dvec4 reflectance;   // x: ρ
+};
+layout(std430, binding = 1) readonly buffer Planes { PlaneGpu planes[]; };
+uniform int uPlaneCount;
+
+uniform dmat3 uWorldFromCamera;  // columns: camera +x (view axis), +y (left), +z (up)
+uniform dvec3 uFocalHalfSize;    // (f [px], W/2, H/2)
+
+layout(location = 0) out vec4 outLuminance;
+layout(location = 1) out float outDistance;
+
+void main() {
+  dvec3 local = dvec3(uFocalHalfSize.x, uFocalHalfSize.y - double(gl_FragCoord.x), double(gl_FragCoord.y) - uFocalHalfSize.z);
+  dvec3 d = normalize(uWorldFromCamera * local);
+  double best = 1.0e300LF;
+  int hit = -1;
+  for (int k = 0; k < uPlaneCount; ++k) {
+    double denom = dot(d, planes[k].normalOffset.xyz);
+    if (abs(denom) < 1e-12) continue;
+    double t = planes[k].normalOffset.w / denom;
+    if (t > 0.0 && t < best) {
+      best = t;
+      hit = k;
+    }
+  }
+  if (hit < 0) discard;
+  vec3 n = vec3(planes[hit].normalOffset.xyz);
+  vec3 dir = vec3(d);
+  if (dot(n, dir) > 0.0) n = -n;  // the side facing the eye
+  float t = float(best);
+  vec3 p = vec3(best * d);
+  vec3 ls = surfaceLuminance(p, n, vec3(float(planes[hit].reflectance.x)));
+  outLuminance = vec4(viewedThroughFog(ls, t), 1.0);
+  outDistance = t;
+  gl_FragDepth = depthFromDistance(t);
+}
