@@ -10,6 +10,8 @@
 // rows and extrapolated to the frame when a whole frame does not fit; the table says which.
 #include "commands.hpp"
 
+#include <fogbeam/gl/surface_pass.hpp>
+
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/raymarch.hpp>
@@ -197,7 +199,8 @@ struct Evaluators {
 };
 
 // One image size: every figure of the table, as JSON (the table is printed from it).
-json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool) {
+json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
+               GlSurfacePass* gl) {
   scene.camera.width = width;
   scene.camera.height = height;
   const Camera& cam = scene.camera;
@@ -215,10 +218,36 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
     renderSurfacesCpu(scene, surface);
     surfaceStats.ms.push_back(msSince(t0));
   }
-  // ---- GL surface pass (fogbeam_gl, EGL): not wired into this build yet. When it is, time
-  // ---- its draw and its readback here as separate stages ("surface_gl", "readback_gl") on
-  // ---- the same scene and size, and use its buffers for the stages below.
-  json glSurface = {{"available", false}, {"note", "GL: not available in this build"}};
+  // GL surface pass (fogbeam_gl, EGL): the whole render() call (upload, draw, PBO readback)
+  // and, from its own counters, the GPU draw time and the readback time. When it works, the
+  // stages below use its buffers, as `fogbeam render` does.
+  json glSurface = {{"available", false}, {"note", "GL: not available (no EGL)"}};
+  double surfaceUsedMs = surfaceStats.median();
+  std::string surfaceUsed = "surface CPU";
+  if (gl) {
+    StageStats total, draw, readback;
+    SurfaceBuffers glBuffers;
+    std::string failure;
+    for (int f = 0; f < o.frames; ++f) {
+      const auto t0 = Clock::now();
+      if (Status st = gl->render(scene, glBuffers); !st) {
+        failure = st.error().message;
+        break;
+      }
+      total.ms.push_back(msSince(t0));
+      draw.ms.push_back(gl->stats().surface_ms);
+      readback.ms.push_back(gl->stats().readback_ms);
+    }
+    if (failure.empty()) {
+      glSurface = {{"available", true}, {"note", gl->description()}, {"total", total.toJson()},
+                   {"draw", draw.toJson()}, {"readback", readback.toJson()}};
+      surface = std::move(glBuffers);
+      surfaceUsedMs = total.median();
+      surfaceUsed = "surface GL";
+    } else {
+      glSurface = {{"available", false}, {"note", "GL failed: " + failure}};
+    }
+  }
 
   // Airlight, accurate method, adaptive subsampling.
   // At least one frame; further frames while they fit the stage budget.
@@ -270,7 +299,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
     compositeFrame(scene.fog, surface, sub, layers);
     compStats.ms.push_back(msSince(t0));
   }
-  const double pipelineMs = surfaceStats.median() + subStats.median() + compStats.median();
+  const double pipelineMs = surfaceUsedMs + subStats.median() + compStats.median();
 
   json stages;
   stages["surface_cpu_planes"] = surfaceStats.toJson();
@@ -284,6 +313,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   stages["composite"] = compStats.toJson();
   r["stages"] = stages;
   r["pipeline_subsampled_ms"] = pipelineMs;
+  r["pipeline_surface"] = surfaceUsed;
   r["fps_subsampled"] = pipelineMs > 0.0 ? 1e3 / pipelineMs : 0.0;
 
   // Accuracy on this frame: a fixed random sample of pixels.
@@ -386,7 +416,13 @@ void printSize(const json& r) {
   const json& s = r["stages"];
   std::printf("\n%d x %d (%.0f pixels)       median       [min – max]\n", w, h, n);
   printStage("surface (CPU planes)", s["surface_cpu_planes"]);
-  std::printf("  %-30s %s\n", "surface + readback (GL)", s["surface_gl"]["note"].get<std::string>().c_str());
+  if (s["surface_gl"]["available"].get<bool>()) {
+    printStage("surface GL: render() total", s["surface_gl"]["total"]);
+    printStage("  of which GPU draw", s["surface_gl"]["draw"]);
+    printStage("  of which readback", s["surface_gl"]["readback"]);
+  } else {
+    std::printf("  %-30s %s\n", "surface (GL)", s["surface_gl"]["note"].get<std::string>().c_str());
+  }
   char note[160];
   std::snprintf(note, sizeof note, "  %zu px evaluated (%.1f %%)", s["airlight_subsampled"]["evaluated_pixels"].get<std::size_t>(),
                 100.0 * s["airlight_subsampled"]["evaluated_pixels"].get<double>() / n);
@@ -398,8 +434,9 @@ void printSize(const json& r) {
     std::snprintf(note, sizeof note, "  all px, whole frame");
   printStage("airlight accurate, full", s["airlight_full"], note);
   printStage("composite", s["composite"]);
-  std::printf("  %-30s %9.2f ms  = %.1f frames/s (surface CPU + airlight subsampled + composite)\n",
-              "pipeline, subsampled", r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>());
+  std::printf("  %-30s %9.2f ms  = %.1f frames/s (%s + airlight subsampled + composite)\n", "pipeline, subsampled",
+              r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>(),
+              r["pipeline_surface"].get<std::string>().c_str());
 
   const json& a = r["accuracy"];
   std::printf("  error vs reference on %d random pixels (seed %u), counted where reference > %.0e cd/m2:\n",
@@ -455,9 +492,13 @@ int run(BenchOptions o) {
   std::printf("fogbeam bench: %s\n", o.scene.c_str());
   std::printf("  machine   %s, %u logical cores; %u threads\n", cpu.c_str(), std::thread::hardware_concurrency(), threads);
   std::printf("  compiler  GCC %s; build type %s; flags '%s'\n", __VERSION__, FOGBEAM_BUILD_TYPE, compileFlags().c_str());
-  std::printf("  scene     %zu lamps, %zu planes, K_t %.4f /m, %s; road: a plane (the glTF default road scene does not exist yet)\n",
-              scene->lamps.size(), scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str());
-  std::printf("  surface   CPU planes; GL: not available in this build\n");
+  std::unique_ptr<GlSurfacePass> gl;
+  if (auto created = GlSurfacePass::create()) gl = std::move(created).value();
+  else std::printf("  surface   GL unavailable (%s); CPU planes only\n", created.error().message.c_str());
+  const std::string road = scene->gltf_path ? "glTF " + *scene->gltf_path + (gl ? "" : " (not drawn without GL)") : "planes only";
+  std::printf("  scene     %zu lamps, %zu planes, K_t %.4f /m, %s; geometry: %s\n", scene->lamps.size(),
+              scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str(), road.c_str());
+  if (gl) std::printf("  surface   GL: %s (its buffers feed the airlight stages); CPU planes timed too\n", gl->description().c_str());
 
   const auto t0 = Clock::now();
   auto ref = AirlightImageEvaluator::build(*scene, AirlightMethod::Reference, {}, threads);
@@ -485,13 +526,13 @@ int run(BenchOptions o) {
                    {"planes", scene->planes.size()},
                    {"extinction_per_m", scene->fog.extinction_per_m},
                    {"phase", describe(scene->fog.phase)},
-                   {"road", "plane (the glTF default road scene does not exist yet)"}};
-  root["gl"] = {{"available", false}, {"note", "GL: not available in this build"}};
+                   {"geometry", road}};
+  root["gl"] = {{"available", gl != nullptr}, {"note", gl ? gl->description() : std::string("no EGL")}};
   root["frames"] = o.frames;
   root["table_build_ms"] = {{"all", buildMs}, {"accurate", accBuildMs}};
   root["sizes"] = json::array();
   for (const auto& [w, h] : sizes) {
-    json r = benchSize(*scene, w, h, o, ev, pool);
+    json r = benchSize(*scene, w, h, o, ev, pool, gl.get());
     printSize(r);
     std::fflush(stdout);
     root["sizes"].push_back(std::move(r));
