@@ -37,7 +37,7 @@ struct Frame {
   AirlightImage& out;
   std::vector<unsigned char>& done;
   const AirlightImageEvaluator& ev;
-  std::vector<std::pair<double, double>> lampPixels;  // image positions of lamps in front
+  const std::vector<std::pair<double, double>>& lampPixels;  // image positions of lamps in front
   std::atomic<std::size_t> evaluated{0};
 
   std::size_t idx(int i, int j) const {
@@ -156,15 +156,16 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     out.rgb.assign(3 * n, 0.0f);
   }
   done_.assign(n, 0);  // no reallocation once sized
-  Frame f{cam, surface, out, done_, *this, {}, {}};
-  // Image positions of lamps in front of the camera.
+  // Image positions of lamps in front of the camera (capacity kept between frames).
+  lampPixels_.clear();
   const Mat3 camFromWorld = glm::transpose(cam.worldFromCamera);
   const double focal = cam.focalLengthPixels();
   for (const AirlightEvaluator& ev : lamps_) {
     const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
     if (p.x <= 0.0) continue;
-    f.lampPixels.emplace_back(0.5 * cam.width - focal * p.y / p.x, 0.5 * cam.height - focal * p.z / p.x);
+    lampPixels_.emplace_back(0.5 * cam.width - focal * p.y / p.x, 0.5 * cam.height - focal * p.z / p.x);
   }
+  Frame f{cam, surface, out, done_, *this, lampPixels_, {}};
 
   if (opt.full) {
     pool_->parallelFor(static_cast<std::size_t>(cam.height), [&](std::size_t row) {

@@ -20,6 +20,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace fogbeam {
@@ -59,6 +60,7 @@ class AirlightImageEvaluator {
   std::vector<AirlightEvaluator> lamps_;
   std::shared_ptr<ThreadPool> pool_;
   std::vector<unsigned char> done_;  // per pixel: evaluated (1) or filled (2)
+  std::vector<std::pair<double, double>> lampPixels_;  // lamps' image positions this frame
 };
 
 }  // namespace fogbeam
