@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -236,16 +237,32 @@ double referenceIntegral(const Context& c, double th0, double thD, double relTol
 // through samples at the ends and middle of each piece; G is integrated exactly against it
 // through the tabulated cumulative moments T_q(k, θ) (so the forward phase peak and the
 // exponential are never sampled). Pieces start at the profile's own breakpoints.
+//
+// `cum` (optional): ascending angles θ_m at which the running integral ∫_{θ0}^{θ_m} is also
+// wanted (written to cumOut; 0 below θ0, the total above θD). They become breakpoints, so
+// one pass yields the integral up to every one of them.
+struct CumulativeRequest {
+  const double* theta = nullptr;
+  double* out = nullptr;
+  std::size_t n = 0;
+};
+
 double accurateIntegral(const Context& c, const detail::GMomentTable& g, double th0, double thD,
-                        const AirlightOptions& opt) {
+                        const AirlightOptions& opt, CumulativeRequest cum = {}) {
   const auto& model = c.profile.model();
   const detail::GMomentTable::KWeights kw = g.kWeights(c.k);
   if (const auto* iso = std::get_if<IsotropicProfile>(&model)) {
     const auto ta = g.cumulative(kw, th0), tb = g.cumulative(kw, thD);
+    for (std::size_t m = 0; m < cum.n; ++m) {
+      const double th = std::clamp(cum.theta[m], th0, thD);
+      cum.out[m] = iso->intensity_cd * (g.cumulative(kw, th)[0] - ta[0]);
+    }
     return iso->intensity_cd * (tb[0] - ta[0]);
   }
   std::vector<double> bp{th0, thD};
-  bp.reserve(16);
+  bp.reserve(16 + cum.n);
+  for (std::size_t m = 0; m < cum.n; ++m)
+    if (cum.theta[m] > th0 && cum.theta[m] < thD) bp.push_back(cum.theta[m]);
   const bool tabulated = std::holds_alternative<TabulatedProfile>(model);
   if (!tabulated) {
     c.profile.appendKinks(c.n, c.t, th0, thD, bp);
@@ -286,8 +303,16 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
   }
 
   double sum = 0.0;
+  std::size_t nextOut = 0;
+  auto emit = [&](double upTo) {
+    while (nextOut < cum.n && cum.theta[nextOut] <= upTo) cum.out[nextOut++] = sum;
+  };
+  emit(th0);
   for (std::size_t i = 1; i < bp.size(); ++i) {
-    if (!live[i]) continue;
+    if (!live[i]) {
+      emit(bp[i]);
+      continue;
+    }
     const double a = bp[i - 1], b = bp[i];
     int pieces = 1;
     if (!tabulated) {
@@ -334,7 +359,9 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
       tPrev = tNext;
       iPrev = iNext;
     }
+    emit(b);
   }
+  while (nextOut < cum.n) cum.out[nextOut++] = sum;
   return sum;
 }
 
@@ -371,6 +398,31 @@ double AirlightEvaluator::evaluate(const Ray& ray) const noexcept {
     }
   }
   return 0.0;
+}
+
+void AirlightEvaluator::evaluateCumulative(const Ray& ray, const double* distances, std::size_t n,
+                                           double* out) const {
+  const double kt = medium_.extinction_per_m;
+  Ray r = ray;
+  r.distance_m = std::numeric_limits<double>::infinity();
+  const RayLampGeometry geo = rayLampGeometry(r, lamp_.position_m);
+  const bool negligible = kt * glm::length(lamp_.position_m - ray.origin) > kMaxOpticalDistance;
+  if (negligible || method_ != AirlightMethod::Accurate || kt * geo.h > tables_->g->kMax()) {
+    for (std::size_t m = 0; m < n; ++m) {
+      r.distance_m = distances[m];
+      out[m] = negligible ? 0.0 : evaluate(r);
+    }
+    return;
+  }
+  // θ of each distance (eq. 3: d − p = h tan θ), ascending with the distances.
+  std::vector<double> theta(n);
+  for (std::size_t m = 0; m < n; ++m)
+    theta[m] = std::isinf(distances[m]) ? kHalfPi : std::atan2(distances[m] - geo.p, geo.h);
+  const Context c{*lamp_.profile, medium_.phase, kt, kt * geo.h, geo.p,
+                  lampFromWorld_ * geo.n, lampFromWorld_ * ray.direction};
+  const double scale = medium_.albedo * kt / geo.h * std::exp(-kt * geo.p);
+  accurateIntegral(c, *tables_->g, geo.theta0, kHalfPi, options_, CumulativeRequest{theta.data(), out, n});
+  for (std::size_t m = 0; m < n; ++m) out[m] = distances[m] <= 0.0 ? 0.0 : scale * out[m];
 }
 
 }  // namespace fogbeam

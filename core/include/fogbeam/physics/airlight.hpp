@@ -91,6 +91,12 @@ class AirlightEvaluator {
   /// `ray.direction` must be unit length; `ray.distance_m` ≥ 0 or +inf.
   [[nodiscard]] double evaluate(const Ray& ray) const noexcept;
 
+  /// L_m along one ray up to each of `n` distances (metres, ascending, +inf allowed), written
+  /// to out[0..n). `ray.distance_m` is ignored. The accurate method does this in one pass
+  /// (the distances become breakpoints of its product integration), which is what the image
+  /// evaluator's view tables are built from; other methods call evaluate() per distance.
+  void evaluateCumulative(const Ray& ray, const double* distances, std::size_t n, double* out) const;
+
   [[nodiscard]] AirlightMethod method() const noexcept { return method_; }
   [[nodiscard]] const TableStats& stats() const noexcept { return stats_; }
   [[nodiscard]] const Lamp& lamp() const noexcept { return lamp_; }

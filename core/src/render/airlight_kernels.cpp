@@ -1,0 +1,249 @@
+// fogbeam — the airlight tables of the image fast path and their scalar definitions
+// (airlight_kernels.hpp). The SIMD versions are in airlight_kernels_simd.cpp.
+#include <fogbeam/render/airlight_kernels.hpp>
+
+#include <boost/math/quadrature/gauss.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <tuple>
+
+namespace fogbeam::kernels {
+
+namespace {
+
+constexpr double kHalfPi = 0.5 * kPi;
+// The tables are float (for the SIMD kernels); the scalar definitions compute in double.
+constexpr double dbl(float v) noexcept { return static_cast<double>(v); }
+
+// ζ ↔ q = tan θ (airlight_kernels.hpp): ζ = sgn q (1 − (1 + |q|)^{−1/2}).
+double zetaOfQ(double q) {
+  if (std::isinf(q)) return q > 0 ? 1.0 : -1.0;
+  return std::copysign(1.0 - 1.0 / std::sqrt(1.0 + std::abs(q)), q);
+}
+double thetaOfZeta(double z) {
+  const double e = 1.0 - std::abs(z);
+  if (e <= 0.0) return std::copysign(kHalfPi, z);
+  return std::atan(std::copysign(1.0 / (e * e) - 1.0, z));
+}
+// dθ/dζ = 2e / (e⁴ + (1 − e²)²), e = 1 − |ζ|: finite, → 0 at the ends.
+double dThetaDZeta(double z) {
+  const double e = 1.0 - std::abs(z);
+  const double s = 1.0 - e * e;
+  return 2.0 * e / (e * e * e * e + s * s);
+}
+
+double hermite(double t, double f0, double m0, double f1, double m1) {
+  const double t2 = t * t, t3 = t2 * t;
+  const double h01 = 3 * t2 - 2 * t3;
+  return (1 - h01) * f0 + (t3 - 2 * t2 + t) * m0 + h01 * f1 + (t3 - t2) * m1;
+}
+
+void cell(double g, int n, int& i, double& t) {
+  const double gc = std::clamp(g, 0.0, static_cast<double>(n - 1));
+  const double fl = std::min(std::floor(gc), static_cast<double>(n - 2));
+  i = static_cast<int>(fl);
+  t = gc - fl;
+}
+
+using PhaseKey = std::tuple<std::size_t, double, double, double, int, int, double>;
+PhaseKey keyOf(const Phase& ph, int nK, int nZ, double kMax) {
+  double a = 0.0, b = 0.0, c = 0.0;
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&ph)) a = hg->g;
+  if (const auto* fm = std::get_if<FogMiePhase>(&ph)) {
+    a = fm->diameter_um;
+    b = fm->g_hg;
+    c = fm->g_d;
+  }
+  return {ph.index(), a, b, c, nK, nZ, kMax};
+}
+
+}  // namespace
+
+std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ, double kMax) {
+  static std::mutex mutex;
+  static std::map<PhaseKey, std::weak_ptr<const IsoTable>> cache;
+  const PhaseKey key = keyOf(phase, nK, nZ, kMax);
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (auto it = cache.find(key); it != cache.end())
+      if (auto sp = it->second.lock()) return sp;
+  }
+  auto t = std::make_shared<IsoTable>();
+  t->nK = nK;
+  t->nZ = nZ;
+  t->kMax = static_cast<float>(kMax);
+  // k0: the log axis is linear below ~k0 (k = K_t h ≈ 0 for rays grazing a lamp) and
+  // logarithmic above, where F changes by a similar fraction per decade.
+  const double k0 = 0.01;
+  t->k0 = static_cast<float>(k0);
+  const double logSpan = std::log1p(kMax / k0);
+  t->uScale = static_cast<float>((nK - 1) / logSpan);
+  t->data.assign(static_cast<std::size_t>(nK) * static_cast<std::size_t>(nZ) * 2, 0.0f);
+  const double dz = 2.0 / (nZ - 1);
+  using GL = boost::math::quadrature::gauss<double, 8>;
+  for (int i = 0; i < nK; ++i) {
+    const double k = k0 * std::expm1(static_cast<double>(i) / (nK - 1) * logSpan);
+    float* row = t->data.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(nZ) * 2;
+    double sum = 0.0, thPrev = -kHalfPi;
+    for (int j = 0; j < nZ; ++j) {
+      const double z = -1.0 + j * dz;
+      const double th = thetaOfZeta(z);
+      // ∫ G dθ over the node interval (G is smooth there: the θ nodes are dense where it peaks).
+      if (j > 0 && th > thPrev)
+        sum += GL::integrate([&](double x) { return integrandG(phase, k, x); }, thPrev, th);
+      thPrev = th;
+      row[2 * j] = static_cast<float>(sum);
+      row[2 * j + 1] = static_cast<float>(integrandG(phase, k, th) * dThetaDZeta(z) * dz);
+    }
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  cache[key] = t;
+  return t;
+}
+
+double IsoTable::lookup(double k, double q) const noexcept {
+  int iu = 0, iz = 0;
+  double tu = 0.0, tz = 0.0;
+  cell(std::log1p(k / dbl(k0)) * dbl(uScale), nK, iu, tu);
+  cell((zetaOfQ(q) + 1.0) * 0.5 * (nZ - 1), nZ, iz, tz);
+  auto at = [&](int row) {
+    const float* c = data.data() + (static_cast<std::size_t>(row) * static_cast<std::size_t>(nZ) +
+                                    static_cast<std::size_t>(iz)) * 2;
+    return hermite(tz, dbl(c[0]), dbl(c[1]), dbl(c[2]), dbl(c[3]));
+  };
+  const double a = at(iu), b = at(iu + 1);
+  return a + tu * (b - a);
+}
+
+void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::size_t nLamps, const PixelGeometry& g,
+                              const PixelBatch& px, float* r, float* gr, float* b) {
+  for (std::size_t i = 0; i < px.n; ++i) {
+    const double a = (dbl(g.cx) - dbl(px.x[i])) * dbl(g.invF);
+    const double bb = (dbl(g.cy) - dbl(px.y[i])) * dbl(g.invF);
+    const double invLen = 1.0 / std::sqrt(1.0 + a * a + bb * bb);
+    const double dist = dbl(px.d[i]);
+    for (std::size_t l = 0; l < nLamps; ++l) {
+      const IsoLamp& L = lamps[l];
+      if (!(dist > 0.0)) continue;
+      const double lx = dbl(L.pos[0]), ly = dbl(L.pos[1]), lz = dbl(L.pos[2]);
+      const double p = (lx + a * ly + bb * lz) * invLen;  // (S − O)·ω
+      const double cx = ly * bb - lz * a, cy = lz - lx * bb, cz = lx * a - ly;  // (S − O) × (1, a, b)
+      const double h = std::max(std::sqrt(cx * cx + cy * cy + cz * cz) * invLen, 1e-6);
+      const double k = dbl(L.kt) * h;
+      const double f0 = table.lookup(k, -p / h);
+      const double fd = table.lookup(k, std::isinf(dist) ? std::numeric_limits<double>::infinity() : (dist - p) / h);
+      const double lm = std::max(0.0, std::exp(-dbl(L.kt) * p) / h * (fd - f0));
+      r[i] += static_cast<float>(lm * dbl(L.weight[0]));
+      gr[i] += static_cast<float>(lm * dbl(L.weight[1]));
+      b[i] += static_cast<float>(lm * dbl(L.weight[2]));
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
+                           ThreadPool& pool) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ViewTable vt;
+  const double ta = std::tan(0.5 * camera.fov_x);
+  const double tb = ta * camera.height / camera.width;  // square pixels
+  const double step = std::tan(radians(stepDeg));
+  // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
+  vt.nA = static_cast<int>(std::ceil(2 * ta / step)) + 3;
+  vt.nB = static_cast<int>(std::ceil(2 * tb / step)) + 3;
+  vt.a0 = static_cast<float>(-ta - step);
+  vt.b0 = static_cast<float>(-tb - step);
+  vt.invStep = static_cast<float>(1.0 / step);
+  vt.nX = std::max(nX, 4);
+  // D: half the cumulative's growth happens within a few scattering lengths; 0.3/K_t puts
+  // about a third of the nodes inside the first 0.3 mean free paths and keeps D at least
+  // twice the lamp's distance from the eye, where the near-lamp peak sits.
+  const Medium& m = lamp.medium();
+  const double lampDist = glm::length(lamp.lamp().position_m - camera.position_m);
+  const double D = std::clamp(0.3 / m.extinction_per_m, 2.0 * lampDist + 1.0, 200.0);
+  vt.distanceScale = static_cast<float>(D);
+  for (int c = 0; c < 3; ++c) vt.weight[c] = static_cast<float>(lamp.lamp().color[c]);
+  const auto nDir = static_cast<std::size_t>(vt.nA) * static_cast<std::size_t>(vt.nB);
+  vt.data.assign(nDir * static_cast<std::size_t>(vt.nX) * 2, 0.0f);
+
+  std::vector<double> dist(static_cast<std::size_t>(vt.nX)), dddx(static_cast<std::size_t>(vt.nX));
+  const double dx = 1.0 / (vt.nX - 1);
+  for (int k = 0; k < vt.nX; ++k) {
+    const double x = k * dx;
+    dist[static_cast<std::size_t>(k)] = k + 1 == vt.nX ? std::numeric_limits<double>::infinity() : D * x / (1 - x);
+    dddx[static_cast<std::size_t>(k)] = k + 1 == vt.nX ? 0.0 : D / ((1 - x) * (1 - x));
+  }
+  const Lamp& L = lamp.lamp();
+  const Mat3 lampFromWorld = glm::transpose(L.worldFromLamp);
+  const double kt = m.extinction_per_m;
+  // Built once per lamp and fog, not per frame: the closure may allocate.
+  pool.parallelFor(static_cast<std::size_t>(vt.nB), [&](std::size_t jb) {
+    ViewTable& t = vt;
+    const std::size_t nXs = static_cast<std::size_t>(t.nX);
+    std::vector<double> out(nXs);
+    for (int ia = 0; ia < t.nA; ++ia) {
+      const double a = dbl(t.a0) + ia * step, b = dbl(t.b0) + static_cast<double>(jb) * step;
+      const Vec3 local = glm::normalize(Vec3(1.0, a, b));
+      const Ray ray{camera.position_m, glm::normalize(camera.worldFromCamera * local), 0.0};
+      lamp.evaluateCumulative(ray, dist.data(), nXs, out.data());
+      float* cellp = t.data.data() + (jb * static_cast<std::size_t>(t.nA) + static_cast<std::size_t>(ia)) * nXs * 2;
+      for (std::size_t k = 0; k < nXs; ++k) {
+        // dL/dd: the in-scattering integrand at distance d (the integrand of L_m in airlight.hpp).
+        double slope = 0.0;
+        const double dk = dist[k];
+        if (!std::isinf(dk)) {
+          const Vec3 s = ray.origin + dk * ray.direction - L.position_m;
+          const double r2 = glm::dot(s, s), r = std::sqrt(r2);
+          if (r > 1e-9) {
+            const Vec3 w = s / r;
+            const double f = m.albedo * kt * std::exp(-kt * (dk + r)) * evalPhase(m.phase, -glm::dot(w, ray.direction)) *
+                             L.profile->intensity(lampFromWorld * w) / r2;
+            slope = f * dddx[k] * dx;
+          }
+        }
+        cellp[2 * k] = static_cast<float>(out[k]);
+        cellp[2 * k + 1] = static_cast<float>(slope);
+      }
+    }
+  });
+  vt.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return vt;
+}
+
+double ViewTable::lookup(double a, double b, double d) const noexcept {
+  if (!(d > 0.0)) return 0.0;
+  int ia = 0, ib = 0, ix = 0;
+  double ta = 0.0, tb = 0.0, tx = 0.0;
+  cell((a - dbl(a0)) * dbl(invStep), nA, ia, ta);
+  cell((b - dbl(b0)) * dbl(invStep), nB, ib, tb);
+  const double x = std::isinf(d) ? 1.0 : d / (d + dbl(distanceScale));
+  cell(x * (nX - 1), nX, ix, tx);
+  auto at = [&](int i, int j) {
+    const float* c = data.data() + ((static_cast<std::size_t>(j) * static_cast<std::size_t>(nA) +
+                                     static_cast<std::size_t>(i)) * static_cast<std::size_t>(nX) +
+                                    static_cast<std::size_t>(ix)) * 2;
+    return hermite(tx, dbl(c[0]), dbl(c[1]), dbl(c[2]), dbl(c[3]));
+  };
+  const double l0 = at(ia, ib) + ta * (at(ia + 1, ib) - at(ia, ib));
+  const double l1 = at(ia, ib + 1) + ta * (at(ia + 1, ib + 1) - at(ia, ib + 1));
+  return std::max(0.0, l0 + tb * (l1 - l0));
+}
+
+void accumulateViewTableScalar(const ViewTable& table, const PixelGeometry& g, const PixelBatch& px, float* r,
+                               float* gr, float* b) {
+  for (std::size_t i = 0; i < px.n; ++i) {
+    const double a = (dbl(g.cx) - dbl(px.x[i])) * dbl(g.invF);
+    const double bb = (dbl(g.cy) - dbl(px.y[i])) * dbl(g.invF);
+    const double lm = table.lookup(a, bb, dbl(px.d[i]));
+    r[i] += static_cast<float>(lm * dbl(table.weight[0]));
+    gr[i] += static_cast<float>(lm * dbl(table.weight[1]));
+    b[i] += static_cast<float>(lm * dbl(table.weight[2]));
+  }
+}
+
+}  // namespace fogbeam::kernels
