@@ -1,21 +1,93 @@
 #include <fogbeam/render/airlight_image.hpp>
 
+#include <fogbeam/render/airlight_kernels.hpp>
+
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <sstream>
 
 namespace fogbeam {
 
+namespace {
+
+// Batches are cut into chunks of this many pixels for the thread pool; a multiple of 64 so
+// every chunk starts on a whole SIMD vector of any width (kernels::paddedSize).
+constexpr std::size_t kChunk = 2048;
+
+struct Block {
+  int i0, j0, i1, j1;  // inclusive corner pixels, all four already evaluated
+};
+
+// Everything a view table depends on besides the lamp's profile: rebuilt when any changes.
+struct ViewKey {
+  Vec3 lampInCamera{0.0};
+  Mat3 lampAxesInCamera{1.0};
+  double fovX = 0.0, aspect = 0.0;
+  double kt = 0.0, albedo = 0.0;
+  bool operator==(const ViewKey&) const = default;
+};
+
+}  // namespace
+
+struct AirlightImageEvaluator::State {
+  AirlightMethod method = AirlightMethod::Accurate;
+  FastPathOptions fast;
+  // Lamp routing (indices into lamps_).
+  std::vector<std::size_t> isoLamps, viewLamps, rayLamps;
+  std::shared_ptr<const kernels::IsoTable> isoTable;
+  // Per vehicle lamp v: viewTables[2v] covers the frustum except a hole around the lamp's
+  // image, viewTables[2v + 1] (empty when the lamp is not in front) the ring around it, and
+  // rayGuards[v] the last few pixels, evaluated per ray.
+  std::vector<kernels::ViewTable> viewTables;
+  struct RayGuard {
+    double a = 0.0, b = 0.0, r2 = -1.0;  // tangent-plane centre and squared radius
+  };
+  std::vector<RayGuard> rayGuards;
+  std::vector<ViewKey> viewKeys;
+  std::vector<bool> viewValid;
+  std::vector<kernels::IsoLamp> isoParams;  // this frame, capacity kept
+
+  // Per-frame buffers, sized once per image size.
+  std::vector<unsigned char> done;  // per pixel: evaluated (1)
+  std::vector<float> bx, by, bd, br, bg, bb;  // the batch being evaluated (padded)
+  std::vector<std::uint32_t> bidx;            // its pixel indices
+  std::size_t bn = 0;
+  std::vector<Block> cur, next, leaves;
+  std::vector<unsigned char> split;
+  std::vector<std::pair<double, double>> lampPixels;
+  std::vector<float> fullX, fullY;  // pixel centres for full mode
+  int fullW = 0, fullH = 0;
+};
+
 Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene, AirlightMethod method,
-                                                             const AirlightOptions& options, unsigned threads) {
+                                                             const AirlightOptions& options, unsigned threads,
+                                                             const FastPathOptions& fast) {
   AirlightImageEvaluator e;
-  for (const SceneLamp& sl : scene.lamps) {
+  e.state_ = std::make_shared<State>();
+  State& st = *e.state_;
+  st.method = method;
+  st.fast = fast;
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const SceneLamp& sl = scene.lamps[i];
     auto ev = AirlightEvaluator::build(sl.lamp, scene.fog, method, options);
     if (!ev) return Error{sl.name + ": " + ev.error().message};
     e.lamps_.push_back(std::move(ev).value());
+    const bool useFast = fast.enabled && method == AirlightMethod::Accurate;
+    if (useFast && std::holds_alternative<IsotropicProfile>(sl.lamp.profile->model()))
+      st.isoLamps.push_back(i);
+    else if (useFast && sl.mount == LampMount::Vehicle)
+      st.viewLamps.push_back(i);
+    else
+      st.rayLamps.push_back(i);
   }
+  if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
+  st.viewTables.resize(2 * st.viewLamps.size());
+  st.rayGuards.resize(st.viewLamps.size());
+  st.viewKeys.resize(st.viewLamps.size());
+  st.viewValid.assign(st.viewLamps.size(), false);
   e.pool_ = std::make_shared<ThreadPool>(threads);
   return e;
 }
@@ -29,118 +101,186 @@ void AirlightImageEvaluator::evaluateRay(const Ray& ray, float rgb[3]) const noe
   for (int c = 0; c < 3; ++c) rgb[c] = static_cast<float>(acc[c]);
 }
 
+std::string AirlightImageEvaluator::describe() const {
+  const State& st = *state_;
+  std::ostringstream o;
+  o << "method " << toString(st.method) << "; ";
+  if (st.isoLamps.empty() && st.viewLamps.empty()) {
+    o << "per-ray evaluation for all " << lamps_.size() << " lamps";
+  } else {
+    o << st.isoLamps.size() << " isotropic lamp(s) by F table, " << st.viewLamps.size()
+      << " vehicle lamp(s) by view table, " << st.rayLamps.size() << " per ray; SIMD target "
+      << kernels::activeTarget();
+  }
+  return o.str();
+}
+
+std::size_t AirlightImageEvaluator::fastTableBytes() const noexcept {
+  std::size_t n = state_->isoTable ? state_->isoTable->bytes() : 0;  // shared per phase
+  for (const auto& vt : state_->viewTables) n += vt.bytes();
+  return n;
+}
+
 namespace {
-
-struct Frame {
-  const Camera& cam;
-  const SurfaceBuffers& surf;
-  AirlightImage& out;
-  std::vector<unsigned char>& done;
-  const AirlightImageEvaluator& ev;
-  const std::vector<std::pair<double, double>>& lampPixels;  // image positions of lamps in front
-  std::atomic<std::size_t> evaluated{0};
-
-  std::size_t idx(int i, int j) const {
-    return static_cast<std::size_t>(j) * static_cast<std::size_t>(cam.width) + static_cast<std::size_t>(i);
-  }
-  float* px(int i, int j) { return out.rgb.data() + 3 * idx(i, j); }
-
-  void evalPixel(int i, int j, std::size_t& count) {
-    const std::size_t k = idx(i, j);
-    if (done[k] == 1) return;
-    const Ray ray{cam.position_m, cam.rayDirection(i + 0.5, j + 0.5), static_cast<double>(surf.distance[k])};
-    ev.evaluateRay(ray, px(i, j));
-    done[k] = 1;
-    ++count;
-  }
-};
 
 float lum(const float* p) { return p[0] + p[1] + p[2]; }
 
-// Fills the block [i0, i1] × [j0, j1] (inclusive corners, already evaluated) by subdivision.
-void refine(Frame& f, const SubsamplingOptions& o, int i0, int j0, int i1, int j1, std::size_t& count) {
-  const int w = i1 - i0, h = j1 - j0;
-  if (w <= 1 && h <= 1) return;  // corners are all the pixels
-  const float* c00 = f.px(i0, j0);
-  const float* c10 = f.px(i1, j0);
-  const float* c01 = f.px(i0, j1);
-  const float* c11 = f.px(i1, j1);
-  // Error estimate: evaluate the block's centre and compare it with the bilinear prediction
-  // from the corners (the centre is needed anyway if the block is split).
-  const int im = i0 + w / 2, jm = j0 + h / 2;
-  f.evalPixel(im, jm, count);
-  const float um = w > 0 ? static_cast<float>(im - i0) / static_cast<float>(w) : 0.0f;
-  const float vm = h > 0 ? static_cast<float>(jm - j0) / static_cast<float>(h) : 0.0f;
-  const float predicted = (1 - um) * (1 - vm) * lum(c00) + um * (1 - vm) * lum(c10) + (1 - um) * vm * lum(c01) +
-                          um * vm * lum(c11);
-  const float actual = lum(f.px(im, jm));
-  bool smooth = std::abs(actual - predicted) <=
-                static_cast<float>(o.rel_tolerance) * actual + static_cast<float>(o.abs_tolerance_cd_m2);
-  if (smooth) {
-    // Distance edges inside the block (a car's silhouette, the horizon) change θd abruptly.
-    // Over a plane, 1/distance is close to affine in screen space (exactly so for 1/depth),
-    // so a pixel whose 1/d departs from the bilinear blend of the corners' 1/d marks an edge;
-    // sky (1/d = 0) next to a surface does so at once.
-    auto inv = [&](int i, int j) {
-      const float d = f.surf.distance[f.idx(i, j)];
-      return std::isinf(d) ? 0.0f : 1.0f / d;
-    };
-    const float q00 = inv(i0, j0), q10 = inv(i1, j0), q01 = inv(i0, j1), q11 = inv(i1, j1);
-    const float tol = static_cast<float>(o.depth_edge_rel);
-    for (int j = j0; j <= j1 && smooth; ++j) {
-      const float v = h > 0 ? static_cast<float>(j - j0) / static_cast<float>(h) : 0.0f;
-      for (int i = i0; i <= i1; ++i) {
-        const float u = w > 0 ? static_cast<float>(i - i0) / static_cast<float>(w) : 0.0f;
-        const float blend = (1 - u) * (1 - v) * q00 + u * (1 - v) * q10 + (1 - u) * v * q01 + u * v * q11;
-        const float q = inv(i, j);
-        if (std::abs(q - blend) > tol * std::max(q, blend)) {
-          smooth = false;
-          break;
-        }
-      }
+// One frame's evaluation context: the evaluator's state plus this frame's inputs.
+struct FrameCtx {
+  const AirlightImageEvaluator::State* st;
+  const std::vector<AirlightEvaluator>* lamps;
+  const Camera* cam;
+  const SurfaceBuffers* surf;
+  AirlightImage* out;
+  kernels::PixelGeometry geo;
+  const SubsamplingOptions* opt;
+  std::size_t idx(int i, int j) const {
+    return static_cast<std::size_t>(j) * static_cast<std::size_t>(cam->width) + static_cast<std::size_t>(i);
+  }
+};
+
+}  // namespace
+
+// Evaluates pixels [begin, end) of the batch held in `st` (its x, y, d arrays) and writes
+// their airlight into `out` (scattered through bidx unless `identity`).
+static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx& f, std::size_t begin,
+                               std::size_t end, bool identity) {
+  const std::size_t n = end - begin;
+  const std::size_t padded = kernels::paddedSize(n);
+  std::fill_n(st.br.data() + begin, padded, 0.0f);
+  std::fill_n(st.bg.data() + begin, padded, 0.0f);
+  std::fill_n(st.bb.data() + begin, padded, 0.0f);
+  const kernels::PixelBatch px{st.bx.data() + begin, st.by.data() + begin, st.bd.data() + begin, n};
+  float* r = st.br.data() + begin;
+  float* g = st.bg.data() + begin;
+  float* b = st.bb.data() + begin;
+  if (!st.isoParams.empty())
+    kernels::accumulateIsoLamps(*st.isoTable, st.isoParams.data(), st.isoParams.size(), f.geo, px, r, g, b);
+  for (const kernels::ViewTable& vt : st.viewTables)
+    if (!vt.data.empty()) kernels::accumulateViewTable(vt, f.geo, px, r, g, b);
+  // Pixels at the image of a vehicle lamp: per ray (see State::rayGuards).
+  for (std::size_t v = 0; v < st.rayGuards.size(); ++v) {
+    const auto& gd = st.rayGuards[v];
+    if (gd.r2 < 0.0) continue;
+    const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
+    for (std::size_t k = 0; k < n; ++k) {
+      const double a = (static_cast<double>(f.geo.cx) - static_cast<double>(px.x[k])) * static_cast<double>(f.geo.invF);
+      const double bb = (static_cast<double>(f.geo.cy) - static_cast<double>(px.y[k])) * static_cast<double>(f.geo.invF);
+      if ((a - gd.a) * (a - gd.a) + (bb - gd.b) * (bb - gd.b) > gd.r2) continue;
+      const Ray ray{f.cam->position_m,
+                    f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
+                    static_cast<double>(px.d[k])};
+      const double l = ev.evaluate(ray);
+      r[k] += static_cast<float>(l * ev.lamp().color[0]);
+      g[k] += static_cast<float>(l * ev.lamp().color[1]);
+      b[k] += static_cast<float>(l * ev.lamp().color[2]);
     }
   }
-  if (smooth) {
-    // A lamp imaged inside the block makes a peak that the corners cannot see.
-    for (const auto& [x, y] : f.lampPixels)
-      if (x >= i0 - o.lamp_guard_px && x <= i1 + 1 + o.lamp_guard_px && y >= j0 - o.lamp_guard_px &&
-          y <= j1 + 1 + o.lamp_guard_px) {
-        smooth = false;
-        break;
+  if (!st.rayLamps.empty()) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const Ray ray{f.cam->position_m,
+                    f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
+                    static_cast<double>(px.d[k])};
+      double acc[3] = {0.0, 0.0, 0.0};
+      for (std::size_t li : st.rayLamps) {
+        const AirlightEvaluator& ev = (*f.lamps)[li];
+        const double l = ev.evaluate(ray);
+        for (int c = 0; c < 3; ++c) acc[c] += l * ev.lamp().color[c];
       }
-  }
-  if (smooth) {
-    for (int j = j0; j <= j1; ++j) {
-      const float v = h > 0 ? static_cast<float>(j - j0) / static_cast<float>(h) : 0.0f;
-      for (int i = i0; i <= i1; ++i) {
-        const std::size_t k = f.idx(i, j);
-        if (f.done[k] == 1) continue;
-        const float u = w > 0 ? static_cast<float>(i - i0) / static_cast<float>(w) : 0.0f;
-        float* p = f.px(i, j);
-        for (int c = 0; c < 3; ++c)
-          p[c] = (1 - u) * (1 - v) * c00[c] + u * (1 - v) * c10[c] + (1 - u) * v * c01[c] + u * v * c11[c];
-        f.done[k] = 2;
-      }
+      r[k] += static_cast<float>(acc[0]);
+      g[k] += static_cast<float>(acc[1]);
+      b[k] += static_cast<float>(acc[2]);
     }
-    return;
   }
-  // Split: evaluate the new corner points, then recurse into the four quadrants.
-  for (int j : {j0, jm, j1})
-    for (int i : {i0, im, i1}) f.evalPixel(i, j, count);
-  if (w <= 1) {  // a column of pixels
-    refine(f, o, i0, j0, i1, jm, count);
-    refine(f, o, i0, jm, i1, j1, count);
-    return;
+  float* dst = f.out->rgb.data();
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t p = identity ? begin + k : st.bidx[begin + k];
+    dst[3 * p] = r[k];
+    dst[3 * p + 1] = g[k];
+    dst[3 * p + 2] = b[k];
   }
-  if (h <= 1) {
-    refine(f, o, i0, j0, im, j1, count);
-    refine(f, o, im, j0, i1, j1, count);
-    return;
+}
+
+namespace {
+
+// Adds pixel (i, j) to the batch unless it was evaluated already.
+void request(AirlightImageEvaluator::State& st, const FrameCtx& f, int i, int j) {
+  const std::size_t k = f.idx(i, j);
+  if (st.done[k]) return;
+  st.done[k] = 1;
+  st.bx[st.bn] = static_cast<float>(i) + 0.5f;
+  st.by[st.bn] = static_cast<float>(j) + 0.5f;
+  st.bd[st.bn] = f.surf->distance[k];
+  st.bidx[st.bn] = static_cast<std::uint32_t>(k);
+  ++st.bn;
+}
+
+// The block test of the header comment: centre against the corners' bilinear prediction,
+// distance-buffer edges, lamp images.
+bool smoothBlock(const FrameCtx& f, const Block& bl) {
+  const SubsamplingOptions& o = *f.opt;
+  const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
+  const float* rgb = f.out->rgb.data();
+  auto px = [&](int i, int j) { return rgb + 3 * f.idx(i, j); };
+  const int im = bl.i0 + w / 2, jm = bl.j0 + h / 2;
+  const float um = w > 0 ? static_cast<float>(im - bl.i0) / static_cast<float>(w) : 0.0f;
+  const float vm = h > 0 ? static_cast<float>(jm - bl.j0) / static_cast<float>(h) : 0.0f;
+  const float predicted = (1 - um) * (1 - vm) * lum(px(bl.i0, bl.j0)) + um * (1 - vm) * lum(px(bl.i1, bl.j0)) +
+                          (1 - um) * vm * lum(px(bl.i0, bl.j1)) + um * vm * lum(px(bl.i1, bl.j1));
+  const float actual = lum(px(im, jm));
+  if (std::abs(actual - predicted) >
+      static_cast<float>(o.rel_tolerance) * actual + static_cast<float>(o.abs_tolerance_cd_m2))
+    return false;
+  // A lamp imaged inside the block makes a peak that the corners cannot see.
+  for (const auto& [x, y] : f.st->lampPixels)
+    if (x >= bl.i0 - o.lamp_guard_px && x <= bl.i1 + 1 + o.lamp_guard_px && y >= bl.j0 - o.lamp_guard_px &&
+        y <= bl.j1 + 1 + o.lamp_guard_px)
+      return false;
+  // Distance edges inside the block (a car's silhouette, the horizon) change θd abruptly.
+  // Over a plane, 1/distance is close to affine in screen space (exactly so for 1/depth), so a
+  // pixel whose 1/d departs from the bilinear blend of the corners' 1/d marks an edge; sky
+  // (1/d = 0) next to a surface does so at once.
+  auto inv = [&](int i, int j) {
+    const float d = f.surf->distance[f.idx(i, j)];
+    return std::isinf(d) ? 0.0f : 1.0f / d;
+  };
+  const float q00 = inv(bl.i0, bl.j0), q10 = inv(bl.i1, bl.j0), q01 = inv(bl.i0, bl.j1), q11 = inv(bl.i1, bl.j1);
+  const float tol = static_cast<float>(o.depth_edge_rel);
+  for (int j = bl.j0; j <= bl.j1; ++j) {
+    const float v = h > 0 ? static_cast<float>(j - bl.j0) / static_cast<float>(h) : 0.0f;
+    for (int i = bl.i0; i <= bl.i1; ++i) {
+      const float u = w > 0 ? static_cast<float>(i - bl.i0) / static_cast<float>(w) : 0.0f;
+      const float blend = (1 - u) * (1 - v) * q00 + u * (1 - v) * q10 + (1 - u) * v * q01 + u * v * q11;
+      const float q = inv(i, j);
+      if (std::abs(q - blend) > tol * std::max(q, blend)) return false;
+    }
   }
-  refine(f, o, i0, j0, im, jm, count);
-  refine(f, o, im, j0, i1, jm, count);
-  refine(f, o, i0, jm, im, j1, count);
-  refine(f, o, im, jm, i1, j1, count);
+  return true;
+}
+
+// Fills the pixels a leaf owns (columns [i0, i1), rows [j0, j1), plus the image's last column
+// and row) that were not evaluated, by bilinear interpolation of its corners. Ownership is
+// exclusive, so leaves can be filled in parallel without two threads writing one pixel.
+void fillLeaf(const FrameCtx& f, const std::vector<unsigned char>& done, const Block& bl) {
+  const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
+  float* rgb = f.out->rgb.data();
+  const float* c00 = rgb + 3 * f.idx(bl.i0, bl.j0);
+  const float* c10 = rgb + 3 * f.idx(bl.i1, bl.j0);
+  const float* c01 = rgb + 3 * f.idx(bl.i0, bl.j1);
+  const float* c11 = rgb + 3 * f.idx(bl.i1, bl.j1);
+  const int iEnd = bl.i1 == f.cam->width - 1 ? bl.i1 : bl.i1 - 1;
+  const int jEnd = bl.j1 == f.cam->height - 1 ? bl.j1 : bl.j1 - 1;
+  for (int j = bl.j0; j <= jEnd; ++j) {
+    const float v = h > 0 ? static_cast<float>(j - bl.j0) / static_cast<float>(h) : 0.0f;
+    for (int i = bl.i0; i <= iEnd; ++i) {
+      const std::size_t k = f.idx(i, j);
+      if (done[k]) continue;
+      const float u = w > 0 ? static_cast<float>(i - bl.i0) / static_cast<float>(w) : 0.0f;
+      float* p = rgb + 3 * k;
+      for (int c = 0; c < 3; ++c)
+        p[c] = (1 - u) * (1 - v) * c00[c] + u * (1 - v) * c10[c] + (1 - u) * v * c01[c] + u * v * c11[c];
+    }
+  }
 }
 
 }  // namespace
@@ -148,6 +288,7 @@ void refine(Frame& f, const SubsamplingOptions& o, int i0, int j0, int i1, int j
 void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt,
                                       AirlightImage& out) {
   const auto t0 = std::chrono::steady_clock::now();
+  State& st = *state_;
   const Camera& cam = scene.camera;
   const auto n = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);
   if (out.width != cam.width || out.height != cam.height || out.rgb.size() != 3 * n) {
@@ -155,53 +296,199 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     out.height = cam.height;
     out.rgb.assign(3 * n, 0.0f);
   }
-  done_.assign(n, 0);  // no reallocation once sized
-  // Image positions of lamps in front of the camera (capacity kept between frames).
-  lampPixels_.clear();
+  out.table_seconds = 0.0;
   const Mat3 camFromWorld = glm::transpose(cam.worldFromCamera);
   const double focal = cam.focalLengthPixels();
+
+  // Lamps in camera coordinates: isotropic kernel parameters, view-table validity.
+  st.isoParams.clear();
+  for (std::size_t li : st.isoLamps) {
+    const AirlightEvaluator& ev = lamps_[li];
+    const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
+    const double kt = ev.medium().extinction_per_m;
+    if (kt * glm::length(p) > kernels::kMaxIsoOpticalDistance) continue;
+    const double i0 = std::get<IsotropicProfile>(ev.lamp().profile->model()).intensity_cd;
+    kernels::IsoLamp l;
+    for (int c = 0; c < 3; ++c) {
+      l.pos[c] = static_cast<float>(p[c]);
+      l.weight[c] = static_cast<float>(ev.medium().albedo * kt * i0 * ev.lamp().color[c]);
+    }
+    l.kt = static_cast<float>(kt);
+    st.isoParams.push_back(l);
+  }
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
+    const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
+    const ViewKey key{camFromWorld * (ev.lamp().position_m - cam.position_m), camFromWorld * ev.lamp().worldFromLamp,
+                      cam.fov_x, static_cast<double>(cam.height) / cam.width, ev.medium().extinction_per_m,
+                      ev.medium().albedo};
+    if (st.viewValid[v] && st.viewKeys[v] == key) continue;
+    kernels::ViewTable& main = st.viewTables[2 * v];
+    kernels::ViewTable& inset = st.viewTables[2 * v + 1];
+    main = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_);
+    inset = kernels::ViewTable{};
+    st.rayGuards[v] = {};
+    if (key.lampInCamera.x > 0.0) {
+      // Near its own image a lamp's airlight changes fast with direction: a 1/α peak, which
+      // bilinear interpolation over a step δ follows within (δ/α)²/8 (1 % from α = 5δ), and
+      // the beam's cut-off crossing the ray close to the lamp. Measured on the bench scene
+      // (docs/airlight.md), the frustum table is within 1 % from 15 of its steps out; the inset,
+      // 4× finer, covers the disc inside that down to 5 of its own steps; per ray inside.
+      constexpr double kMainGuardSteps = 15.0, kInsetRefine = 4.0, kInsetGuardSteps = 5.0;
+      const double la = key.lampInCamera.y / key.lampInCamera.x, lb = key.lampInCamera.z / key.lampInCamera.x;
+      const double step = 1.0 / static_cast<double>(main.invStep), fine = step / kInsetRefine;
+      const double r1 = kMainGuardSteps * step, r0 = kInsetGuardSteps * fine;
+      const int nodes = static_cast<int>(std::ceil(2.0 * (r1 + 2.0 * fine) / fine)) + 1;
+      inset = kernels::ViewTable::buildWindow(ev, cam, la - r1 - 2.0 * fine, lb - r1 - 2.0 * fine, nodes, nodes, fine,
+                                              st.fast.view_table_distances, *pool_);
+      main.guardA = inset.guardA = static_cast<float>(la);
+      main.guardB = inset.guardB = static_cast<float>(lb);
+      main.innerR2 = inset.outerR2 = static_cast<float>(r1 * r1);
+      inset.innerR2 = static_cast<float>(r0 * r0);
+      st.rayGuards[v] = {la, lb, static_cast<double>(inset.innerR2)};
+    }
+    st.viewKeys[v] = key;
+    st.viewValid[v] = true;
+    out.table_seconds += main.build_seconds + inset.build_seconds;
+  }
+  // Image positions of lamps in front of the camera (capacity kept between frames).
+  st.lampPixels.clear();
   for (const AirlightEvaluator& ev : lamps_) {
     const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
     if (p.x <= 0.0) continue;
-    lampPixels_.emplace_back(0.5 * cam.width - focal * p.y / p.x, 0.5 * cam.height - focal * p.z / p.x);
+    st.lampPixels.emplace_back(0.5 * cam.width - focal * p.y / p.x, 0.5 * cam.height - focal * p.z / p.x);
   }
-  Frame f{cam, surface, out, done_, *this, lampPixels_, {}};
+
+  const std::size_t cap = kernels::paddedSize(n) + kChunk;
+  if (st.bx.size() < cap) {
+    for (auto* v : {&st.bx, &st.by, &st.bd, &st.br, &st.bg, &st.bb}) v->assign(cap, 0.0f);
+    st.bidx.assign(cap, 0);
+  }
+  st.done.assign(n, 0);  // no reallocation once sized
+  FrameCtx f{&st, &lamps_, &cam, &surface, &out,
+             kernels::PixelGeometry{static_cast<float>(0.5 * cam.width), static_cast<float>(0.5 * cam.height),
+                                    static_cast<float>(1.0 / focal)},
+             &opt};
+  std::size_t evaluated = 0;
+
+  // Evaluates the batch st.bx/by/bd[0, st.bn) over the pool. The closure holds two pointers,
+  // which std::function stores without allocating.
+  auto runBatch = [&](bool identity) {
+    const std::size_t chunks = (st.bn + kChunk - 1) / kChunk;
+    struct Job {
+      State* st;
+      const FrameCtx* f;
+      bool identity;
+    } job{&st, &f, identity};
+    const Job* jp = &job;
+    pool_->parallelFor(chunks, [jp](std::size_t c) {
+      const std::size_t b = c * kChunk, e = std::min(jp->st->bn, b + kChunk);
+      evaluateBatchChunk(*jp->st, *jp->f, b, e, jp->identity);
+    });
+    evaluated += st.bn;
+    st.bn = 0;
+  };
 
   if (opt.full) {
-    pool_->parallelFor(static_cast<std::size_t>(cam.height), [&](std::size_t row) {
-      std::size_t count = 0;
-      for (int i = 0; i < cam.width; ++i) f.evalPixel(i, static_cast<int>(row), count);
-      f.evaluated += count;
-    });
+    if (st.fullW != cam.width || st.fullH != cam.height) {
+      st.fullX.resize(n);
+      st.fullY.resize(n);
+      for (std::size_t k = 0; k < n; ++k) {
+        st.fullX[k] = static_cast<float>(k % static_cast<std::size_t>(cam.width)) + 0.5f;
+        st.fullY[k] = static_cast<float>(k / static_cast<std::size_t>(cam.width)) + 0.5f;
+      }
+      st.fullW = cam.width;
+      st.fullH = cam.height;
+    }
+    std::copy(st.fullX.begin(), st.fullX.end(), st.bx.begin());
+    std::copy(st.fullY.begin(), st.fullY.end(), st.by.begin());
+    std::copy(surface.distance.begin(), surface.distance.begin() + static_cast<std::ptrdiff_t>(n), st.bd.begin());
+    st.bn = n;
+    runBatch(true);
   } else {
     const int s = std::max(2, opt.coarse_step);
-    const int bx = (cam.width - 2) / s + 1, by = (cam.height - 2) / s + 1;
-    // Pass 1: the coarse grid corners (rows in parallel). Pass 2: block rows in parallel;
-    // neighbouring blocks share edges, which both may evaluate (idempotent writes of the
-    // same value) — rows of blocks are processed in two phases so that no two threads
-    // write one pixel at once.
-    pool_->parallelFor(static_cast<std::size_t>(by + 1), [&](std::size_t bj) {
-      std::size_t count = 0;
-      const int j = std::min(static_cast<int>(bj) * s, cam.height - 1);
-      for (int bi = 0; bi <= bx; ++bi) f.evalPixel(std::min(bi * s, cam.width - 1), j, count);
-      f.evaluated += count;
-    });
-    for (int phase = 0; phase < 2; ++phase) {
-      pool_->parallelFor(static_cast<std::size_t>((by + 1 - phase) / 2), [&](std::size_t k) {
-        const int bj = static_cast<int>(2 * k) + phase;
-        std::size_t count = 0;
-        const int j0 = bj * s, j1 = std::min(j0 + s, cam.height - 1);
-        if (j0 >= cam.height - 1) return;
-        for (int bi = 0; bi < bx; ++bi) {
-          const int i0 = bi * s, i1 = std::min(i0 + s, cam.width - 1);
-          if (i0 >= cam.width - 1) break;
-          refine(f, opt, i0, j0, i1, j1, count);
-        }
-        f.evaluated += count;
-      });
+    // Level 0: the coarse grid's corners.
+    st.cur.clear();
+    st.leaves.clear();
+    for (int j0 = 0; j0 < cam.height - 1 || j0 == 0; j0 += s) {
+      const int j1 = std::min(j0 + s, cam.height - 1);
+      for (int i0 = 0; i0 < cam.width - 1 || i0 == 0; i0 += s) {
+        const int i1 = std::min(i0 + s, cam.width - 1);
+        request(st, f, i0, j0);
+        request(st, f, i1, j0);
+        request(st, f, i0, j1);
+        request(st, f, i1, j1);
+        st.cur.push_back(Block{i0, j0, i1, j1});
+        if (i1 == cam.width - 1) break;
+      }
+      if (j1 == cam.height - 1) break;
     }
+    runBatch(false);
+    while (!st.cur.empty()) {
+      // Centres of the blocks that have pixels besides their corners.
+      std::size_t kept = 0;
+      for (const Block& bl : st.cur) {
+        const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
+        if (w <= 1 && h <= 1) continue;  // every pixel is a corner
+        request(st, f, bl.i0 + w / 2, bl.j0 + h / 2);
+        st.cur[kept++] = bl;
+      }
+      st.cur.resize(kept);
+      runBatch(false);
+      // Judge every block in parallel.
+      st.split.assign(st.cur.size(), 0);
+      {
+        struct Job {
+          State* st;
+          const FrameCtx* f;
+        } job{&st, &f};
+        const Job* jp = &job;
+        const std::size_t nb = st.cur.size(), chunks = (nb + 255) / 256;
+        pool_->parallelFor(chunks, [jp](std::size_t c) {
+          const std::size_t b = c * 256, e = std::min(jp->st->cur.size(), b + 256);
+          for (std::size_t k = b; k < e; ++k) jp->st->split[k] = smoothBlock(*jp->f, jp->st->cur[k]) ? 0 : 1;
+        });
+      }
+      // Split blocks: the new corners become the next batch, the quadrants the next level.
+      st.next.clear();
+      for (std::size_t k = 0; k < st.cur.size(); ++k) {
+        const Block bl = st.cur[k];
+        if (!st.split[k]) {
+          st.leaves.push_back(bl);
+          continue;
+        }
+        const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
+        const int im = bl.i0 + w / 2, jm = bl.j0 + h / 2;
+        for (int j : {bl.j0, jm, bl.j1})
+          for (int i : {bl.i0, im, bl.i1}) request(st, f, i, j);
+        if (w <= 1) {
+          st.next.push_back(Block{bl.i0, bl.j0, bl.i1, jm});
+          st.next.push_back(Block{bl.i0, jm, bl.i1, bl.j1});
+        } else if (h <= 1) {
+          st.next.push_back(Block{bl.i0, bl.j0, im, bl.j1});
+          st.next.push_back(Block{im, bl.j0, bl.i1, bl.j1});
+        } else {
+          st.next.push_back(Block{bl.i0, bl.j0, im, jm});
+          st.next.push_back(Block{im, bl.j0, bl.i1, jm});
+          st.next.push_back(Block{bl.i0, jm, im, bl.j1});
+          st.next.push_back(Block{im, jm, bl.i1, bl.j1});
+        }
+      }
+      runBatch(false);
+      std::swap(st.cur, st.next);
+    }
+    // Interpolate what was not evaluated.
+    struct Job {
+      State* st;
+      const FrameCtx* f;
+    } job{&st, &f};
+    const Job* jp = &job;
+    const std::size_t chunks = (st.leaves.size() + 255) / 256;
+    pool_->parallelFor(chunks, [jp](std::size_t c) {
+      const std::size_t b = c * 256, e = std::min(jp->st->leaves.size(), b + 256);
+      for (std::size_t k = b; k < e; ++k) fillLeaf(*jp->f, jp->st->done, jp->st->leaves[k]);
+    });
   }
-  out.evaluated = f.evaluated.load();
+  out.evaluated = evaluated;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 

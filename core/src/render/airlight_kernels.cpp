@@ -148,16 +148,22 @@ void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::
 // ---------------------------------------------------------------------------------------------
 ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
                            ThreadPool& pool) {
-  const auto t0 = std::chrono::steady_clock::now();
-  ViewTable vt;
   const double ta = std::tan(0.5 * camera.fov_x);
   const double tb = ta * camera.height / camera.width;  // square pixels
   const double step = std::tan(radians(stepDeg));
   // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
-  vt.nA = static_cast<int>(std::ceil(2 * ta / step)) + 3;
-  vt.nB = static_cast<int>(std::ceil(2 * tb / step)) + 3;
-  vt.a0 = static_cast<float>(-ta - step);
-  vt.b0 = static_cast<float>(-tb - step);
+  return buildWindow(lamp, camera, -ta - step, -tb - step, static_cast<int>(std::ceil(2 * ta / step)) + 3,
+                     static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool);
+}
+
+ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0, double b0, int nA,
+                                 int nB, double step, int nX, ThreadPool& pool) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ViewTable vt;
+  vt.nA = std::max(nA, 2);
+  vt.nB = std::max(nB, 2);
+  vt.a0 = static_cast<float>(a0);
+  vt.b0 = static_cast<float>(b0);
   vt.invStep = static_cast<float>(1.0 / step);
   vt.nX = std::max(nX, 4);
   // D: half the cumulative's growth happens within a few scattering lengths; 0.3/K_t puts
@@ -215,8 +221,14 @@ ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, 
   return vt;
 }
 
+bool ViewTable::covers(double a, double b) const noexcept {
+  const double da = a - dbl(guardA), db = b - dbl(guardB);
+  const double r2 = da * da + db * db;
+  return r2 > dbl(innerR2) && r2 <= dbl(outerR2);
+}
+
 double ViewTable::lookup(double a, double b, double d) const noexcept {
-  if (!(d > 0.0)) return 0.0;
+  if (!(d > 0.0) || !covers(a, b)) return 0.0;
   int ia = 0, ib = 0, ix = 0;
   double ta = 0.0, tb = 0.0, tx = 0.0;
   cell((a - dbl(a0)) * dbl(invStep), nA, ia, ta);

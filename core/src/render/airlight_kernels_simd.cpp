@@ -147,7 +147,10 @@ void AccumulateViewTable(const ViewTable& table, const PixelGeometry& g, const P
     const VF l01 = corner(hn::Add(base, rowStride)), l11 = corner(hn::Add(hn::Add(base, rowStride), dirStride));
     const VF l0 = hn::MulAdd(ta, hn::Sub(l10, l00), l00), l1 = hn::MulAdd(ta, hn::Sub(l11, l01), l01);
     VF lm = hn::MulAdd(tb, hn::Sub(l1, l0), l0);
-    lm = hn::IfThenElseZero(hn::Gt(dist, hn::Zero(d)), hn::Max(lm, hn::Zero(d)));
+    const VF ga = hn::Sub(a, hn::Set(d, table.guardA)), gb = hn::Sub(bb, hn::Set(d, table.guardB));
+    const VF r2 = hn::MulAdd(ga, ga, hn::Mul(gb, gb));
+    const auto covered = hn::And(hn::Gt(r2, hn::Set(d, table.innerR2)), hn::Le(r2, hn::Set(d, table.outerR2)));
+    lm = hn::IfThenElseZero(hn::And(covered, hn::Gt(dist, hn::Zero(d))), hn::Max(lm, hn::Zero(d)));
     hn::StoreU(hn::MulAdd(lm, hn::Set(d, table.weight[0]), hn::LoadU(d, r + i)), d, r + i);
     hn::StoreU(hn::MulAdd(lm, hn::Set(d, table.weight[1]), hn::LoadU(d, gr + i)), d, gr + i);
     hn::StoreU(hn::MulAdd(lm, hn::Set(d, table.weight[2]), hn::LoadU(d, b + i)), d, b + i);

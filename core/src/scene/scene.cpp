@@ -81,6 +81,7 @@ constexpr std::array kLampKeys{
     KeySpec{"outer_deg", "number, deg, spot only, required; outer_deg <= 180"},
     KeySpec{"scale", "number, default 1, > 0; multiplies every candela value (meant for files)"},
     KeySpec{"color", "[r, g, b], default [1, 1, 1], each >= 0"},
+    KeySpec{"mount", "string, default \"world\": \"world\" | \"vehicle\" (moves with the camera)"},
 };
 
 constexpr std::array kPlaneKeys{
@@ -439,6 +440,13 @@ SceneLamp parseLamp(const Section& s, std::size_t ordinal, const std::string& ba
   out.lamp.position_m = s.vec3("position_m");
   out.lamp.worldFromLamp = s.orientation();
   out.lamp.color = s.optVec3("color", kNonNegative).value_or(Vec3(1.0));
+  if (auto mount = s.optString("mount")) {
+    if (*mount == "vehicle") {
+      out.mount = LampMount::Vehicle;
+    } else if (*mount != "world") {
+      s.failAt(*s.find("mount"), "mount", "expected \"world\" or \"vehicle\", found " + inQuotes(*mount));
+    }
+  }
 
   const std::string kinds = "\"isotropic\", \"spot\" or a path to a .ies, .ldt or .csv file";
   const std::string profile = s.string("profile", kinds);

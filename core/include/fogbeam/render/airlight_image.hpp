@@ -5,9 +5,15 @@
 // `coarse_step` pixels whose corners are evaluated; a block is filled by bilinear
 // interpolation when its evaluated centre matches the corners' bilinear prediction within the
 // tolerances, its distance buffer has no edge, and no lamp projects into it; otherwise it is
-// split in four, down to single pixels.
+// split in four, down to single pixels. The refinement runs level by level: each level's
+// new sample points are evaluated together as one batch (SIMD, all threads), then every block
+// is judged in parallel.
 // `full` forces per-pixel evaluation. Work is spread over a persistent thread pool; buffers
 // are sized once, so frames of the same size do not allocate.
+//
+// Fast path (accurate method, airlight_kernels.hpp): isotropic lamps are evaluated from the
+// phase function's F table and vehicle-mounted lamps from view tables, by Highway kernels;
+// other lamps (spots, world-fixed measured profiles) by the per-ray accurate evaluator.
 //
 // Thread-safety: one evaluate() at a time per AirlightImageEvaluator.
 #pragma once
@@ -20,6 +26,7 @@
 
 #include <cstddef>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -34,33 +41,49 @@ struct SubsamplingOptions {
   int lamp_guard_px = 2;      ///< blocks within this many pixels of a lamp's image are split
 };
 
+/// The accurate method's table-and-SIMD path (airlight_kernels.hpp).
+struct FastPathOptions {
+  bool enabled = true;              ///< false: every lamp through the per-ray evaluator
+  double view_table_step_deg = 0.2; ///< view-table direction spacing at the image centre, degrees
+  int view_table_distances = 48;    ///< view-table distance nodes per direction
+};
+
 /// Airlight per pixel and channel (cd/m²), and how many pixels were evaluated.
 struct AirlightImage {
   int width = 0, height = 0;
   std::vector<float> rgb;        ///< 3 per pixel, row 0 at the top
   std::size_t evaluated = 0;     ///< pixels whose rays were evaluated (the rest interpolated)
-  double seconds = 0.0;          ///< wall time of the last evaluate()
+  double seconds = 0.0;          ///< wall time of the last evaluate(), table builds included
+  double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view tables
 };
 
 class AirlightImageEvaluator {
  public:
   /// Builds one AirlightEvaluator per lamp (tables shared through the evaluators' caches).
+  /// `threads` = 0: all hardware threads.
   [[nodiscard]] static Result<AirlightImageEvaluator> build(const Scene& scene, AirlightMethod method,
                                                             const AirlightOptions& options = {},
-                                                            unsigned threads = 0);
+                                                            unsigned threads = 0, const FastPathOptions& fast = {});
 
   /// Fills `out` for the scene's camera using `surface.distance` (+inf = sky).
   void evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt, AirlightImage& out);
 
-  /// Sum over lamps of colour × L_m for one ray (cd/m² per channel).
+  /// Sum over lamps of colour × L_m for one ray (cd/m² per channel), every lamp through the
+  /// per-ray evaluator of the method (no tables): the definition the fast path is tested against.
   void evaluateRay(const Ray& ray, float rgb[3]) const noexcept;
+
+  /// Which lamps take which path, and the SIMD target in use, in words (for logs and bench).
+  [[nodiscard]] std::string describe() const;
+  /// Bytes held by this evaluator's fast-path tables (view tables and the F table).
+  [[nodiscard]] std::size_t fastTableBytes() const noexcept;
+
+  struct State;  // per-frame buffers and tables (private)
 
  private:
   AirlightImageEvaluator() = default;
   std::vector<AirlightEvaluator> lamps_;
   std::shared_ptr<ThreadPool> pool_;
-  std::vector<unsigned char> done_;  // per pixel: evaluated (1) or filled (2)
-  std::vector<std::pair<double, double>> lampPixels_;  // lamps' image positions this frame
+  std::shared_ptr<State> state_;
 };
 
 }  // namespace fogbeam

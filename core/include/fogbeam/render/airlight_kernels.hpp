@@ -78,6 +78,12 @@ struct ViewTable {
   int nA = 0, nB = 0, nX = 0;  ///< direction nodes along a and b; distance nodes
   float distanceScale = 0.0f;  ///< D of x = d / (d + D), metres
   float weight[3] = {1, 1, 1};  ///< lamp colour
+  // Near the lamp's own image the airlight peaks like 1/h and no fixed grid interpolates it:
+  // the table counts only where innerR2 < r² ≤ outerR2, r the tangent-plane distance from
+  // (guardA, guardB). The frustum table leaves a hole of a few steps around the lamp, an inset
+  // table 8× finer fills the ring around it, the per-ray evaluator the last pixels.
+  float guardA = 0.0f, guardB = 0.0f;
+  float innerR2 = -1.0f, outerR2 = 3.0e38f;
   std::vector<float> data;     ///< per direction (b-major), per x node: (L, dL/dx · Δx)
   double build_seconds = 0.0;
   [[nodiscard]] std::size_t bytes() const noexcept { return data.size() * sizeof(float); }
@@ -87,8 +93,14 @@ struct ViewTable {
   /// Runs on `pool`.
   [[nodiscard]] static ViewTable build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
                                        ThreadPool& pool);
+  /// The same over a window of the tangent plane: nA × nB nodes from (a0, b0), spacing
+  /// `step` in tangent units.
+  [[nodiscard]] static ViewTable buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0,
+                                             double b0, int nA, int nB, double step, int nX, ThreadPool& pool);
+  /// True where this table contributes (see innerR2/outerR2).
+  [[nodiscard]] bool covers(double a, double b) const noexcept;
   /// Scalar lookup (double arithmetic): the reference for the SIMD kernel. Luminance for
-  /// white light, cd/m².
+  /// white light, cd/m²; 0 where the table does not cover (a, b).
   [[nodiscard]] double lookup(double a, double b, double d) const noexcept;
 };
 

@@ -46,9 +46,15 @@ struct Plane {
 };
 
 /// A lamp of the scene, with the name shown in reports ("lamp[2]" when unnamed).
+/// Where a lamp is fixed. A vehicle lamp keeps its pose relative to the camera from frame to
+/// frame (the ego car's headlamps seen from the driver's eye), so the image evaluator may cache
+/// its airlight per view direction (kernels::ViewTable); a world lamp may move relative to it.
+enum class LampMount { World, Vehicle };
+
 struct SceneLamp {
   std::string name;
   Lamp lamp;
+  LampMount mount = LampMount::World;  ///< scene key `mount` = "world" | "vehicle"
 };
 
 struct Scene {
