@@ -59,6 +59,10 @@ struct AirlightImageEvaluator::State {
   std::vector<unsigned char> split;
   std::vector<std::pair<double, double>> lampPixels;
   std::vector<float> fullX, fullY;  // pixel centres for full mode
+  std::vector<std::uint32_t> edgeSat;  // summed-area table of the distance-edge mask, (W+1)×(H+1)
+  // Compacted sub-batches for tables and guards that cover a small disc (same layout as bx…).
+  std::vector<float> sx, sy, sd, sr, sg, sb;
+  std::vector<std::uint32_t> sidx;
   int fullW = 0, fullH = 0;
 };
 
@@ -146,6 +150,7 @@ struct FrameCtx {
 static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx& f, std::size_t begin,
                                std::size_t end, bool identity) {
   const std::size_t n = end - begin;
+  if (n == 0) return;
   const std::size_t padded = kernels::paddedSize(n);
   std::fill_n(st.br.data() + begin, padded, 0.0f);
   std::fill_n(st.bg.data() + begin, padded, 0.0f);
@@ -156,17 +161,72 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
   float* b = st.bb.data() + begin;
   if (!st.isoParams.empty())
     kernels::accumulateIsoLamps(*st.isoTable, st.isoParams.data(), st.isoParams.size(), f.geo, px, r, g, b);
-  for (const kernels::ViewTable& vt : st.viewTables)
-    if (!vt.data.empty()) kernels::accumulateViewTable(vt, f.geo, px, r, g, b);
-  // Pixels at the image of a vehicle lamp: per ray (see State::rayGuards).
-  for (std::size_t v = 0; v < st.rayGuards.size(); ++v) {
-    const auto& gd = st.rayGuards[v];
-    if (gd.r2 < 0.0) continue;
-    const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
+  // The chunk's extent on the tangent plane: inset tables and per-ray guards cover a small
+  // disc, and most chunks do not reach it.
+  float xMin = px.x[0], xMax = px.x[0], yMin = px.y[0], yMax = px.y[0];
+  for (std::size_t k = 1; k < n; ++k) {
+    xMin = std::min(xMin, px.x[k]);
+    xMax = std::max(xMax, px.x[k]);
+    yMin = std::min(yMin, px.y[k]);
+    yMax = std::max(yMax, px.y[k]);
+  }
+  const double aLo = (static_cast<double>(f.geo.cx) - static_cast<double>(xMax)) * static_cast<double>(f.geo.invF);
+  const double aHi = (static_cast<double>(f.geo.cx) - static_cast<double>(xMin)) * static_cast<double>(f.geo.invF);
+  const double bLo = (static_cast<double>(f.geo.cy) - static_cast<double>(yMax)) * static_cast<double>(f.geo.invF);
+  const double bHi = (static_cast<double>(f.geo.cy) - static_cast<double>(yMin)) * static_cast<double>(f.geo.invF);
+  auto reaches = [&](double ca, double cb, double r2) {
+    const double da = std::max({aLo - ca, 0.0, ca - aHi}), db = std::max({bLo - cb, 0.0, cb - bHi});
+    return da * da + db * db <= r2;
+  };
+  // Tables and guards that cover a small disc run on the chunk's pixels inside it only,
+  // compacted into the scratch arrays at the same offset (chunks do not overlap).
+  auto compact = [&](double ca, double cb, double r2) {
+    std::size_t m = 0;
     for (std::size_t k = 0; k < n; ++k) {
       const double a = (static_cast<double>(f.geo.cx) - static_cast<double>(px.x[k])) * static_cast<double>(f.geo.invF);
       const double bb = (static_cast<double>(f.geo.cy) - static_cast<double>(px.y[k])) * static_cast<double>(f.geo.invF);
-      if ((a - gd.a) * (a - gd.a) + (bb - gd.b) * (bb - gd.b) > gd.r2) continue;
+      if ((a - ca) * (a - ca) + (bb - cb) * (bb - cb) > r2) continue;
+      st.sx[begin + m] = px.x[k];
+      st.sy[begin + m] = px.y[k];
+      st.sd[begin + m] = px.d[k];
+      st.sidx[begin + m] = static_cast<std::uint32_t>(k);
+      ++m;
+    }
+    return m;
+  };
+  for (const kernels::ViewTable& vt : st.viewTables) {
+    if (vt.data.empty()) continue;
+    if (vt.outerR2 >= 1e30f) {
+      kernels::accumulateViewTable(vt, f.geo, px, r, g, b);
+      continue;
+    }
+    const double r2 = static_cast<double>(vt.outerR2);
+    if (!reaches(static_cast<double>(vt.guardA), static_cast<double>(vt.guardB), r2)) continue;
+    const std::size_t m = compact(static_cast<double>(vt.guardA), static_cast<double>(vt.guardB), r2);
+    if (m == 0) continue;
+    float* sr = st.sr.data() + begin;
+    float* sg = st.sg.data() + begin;
+    float* sb = st.sb.data() + begin;
+    std::fill_n(sr, kernels::paddedSize(m), 0.0f);
+    std::fill_n(sg, kernels::paddedSize(m), 0.0f);
+    std::fill_n(sb, kernels::paddedSize(m), 0.0f);
+    kernels::accumulateViewTable(vt, f.geo, {st.sx.data() + begin, st.sy.data() + begin, st.sd.data() + begin, m}, sr,
+                                 sg, sb);
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::size_t t = st.sidx[begin + k];
+      r[t] += sr[k];
+      g[t] += sg[k];
+      b[t] += sb[k];
+    }
+  }
+  // Pixels at the image of a vehicle lamp: per ray (see State::rayGuards).
+  for (std::size_t v = 0; v < st.rayGuards.size(); ++v) {
+    const auto& gd = st.rayGuards[v];
+    if (gd.r2 < 0.0 || !reaches(gd.a, gd.b, gd.r2)) continue;
+    const std::size_t m = compact(gd.a, gd.b, gd.r2);
+    const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
+    for (std::size_t c = 0; c < m; ++c) {
+      const std::size_t k = st.sidx[begin + c];
       const Ray ray{f.cam->position_m,
                     f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
                     static_cast<double>(px.d[k])};
@@ -236,26 +296,13 @@ bool smoothBlock(const FrameCtx& f, const Block& bl) {
     if (x >= bl.i0 - o.lamp_guard_px && x <= bl.i1 + 1 + o.lamp_guard_px && y >= bl.j0 - o.lamp_guard_px &&
         y <= bl.j1 + 1 + o.lamp_guard_px)
       return false;
-  // Distance edges inside the block (a car's silhouette, the horizon) change θd abruptly.
-  // Over a plane, 1/distance is close to affine in screen space (exactly so for 1/depth), so a
-  // pixel whose 1/d departs from the bilinear blend of the corners' 1/d marks an edge; sky
-  // (1/d = 0) next to a surface does so at once.
-  auto inv = [&](int i, int j) {
-    const float d = f.surf->distance[f.idx(i, j)];
-    return std::isinf(d) ? 0.0f : 1.0f / d;
-  };
-  const float q00 = inv(bl.i0, bl.j0), q10 = inv(bl.i1, bl.j0), q01 = inv(bl.i0, bl.j1), q11 = inv(bl.i1, bl.j1);
-  const float tol = static_cast<float>(o.depth_edge_rel);
-  for (int j = bl.j0; j <= bl.j1; ++j) {
-    const float v = h > 0 ? static_cast<float>(j - bl.j0) / static_cast<float>(h) : 0.0f;
-    for (int i = bl.i0; i <= bl.i1; ++i) {
-      const float u = w > 0 ? static_cast<float>(i - bl.i0) / static_cast<float>(w) : 0.0f;
-      const float blend = (1 - u) * (1 - v) * q00 + u * (1 - v) * q10 + (1 - u) * v * q01 + u * v * q11;
-      const float q = inv(i, j);
-      if (std::abs(q - blend) > tol * std::max(q, blend)) return false;
-    }
-  }
-  return true;
+  // Distance edges inside the block (a car's silhouette, the horizon) change θd abruptly:
+  // any pixel of the edge mask (buildEdgeSat) in the closed block splits it.
+  const std::size_t w1 = static_cast<std::size_t>(f.cam->width) + 1;
+  const std::uint32_t* S = f.st->edgeSat.data();
+  auto at = [&](int i, int j) { return S[static_cast<std::size_t>(j) * w1 + static_cast<std::size_t>(i)]; };
+  const std::uint32_t edges = at(bl.i1 + 1, bl.j1 + 1) - at(bl.i0, bl.j1 + 1) - at(bl.i1 + 1, bl.j0) + at(bl.i0, bl.j0);
+  return edges == 0;
 }
 
 // Fills the pixels a leaf owns (columns [i0, i1), rows [j0, j1), plus the image's last column
@@ -270,16 +317,78 @@ void fillLeaf(const FrameCtx& f, const std::vector<unsigned char>& done, const B
   const float* c11 = rgb + 3 * f.idx(bl.i1, bl.j1);
   const int iEnd = bl.i1 == f.cam->width - 1 ? bl.i1 : bl.i1 - 1;
   const int jEnd = bl.j1 == f.cam->height - 1 ? bl.j1 : bl.j1 - 1;
+  const float invW = w > 0 ? 1.0f / static_cast<float>(w) : 0.0f, invH = h > 0 ? 1.0f / static_cast<float>(h) : 0.0f;
   for (int j = bl.j0; j <= jEnd; ++j) {
-    const float v = h > 0 ? static_cast<float>(j - bl.j0) / static_cast<float>(h) : 0.0f;
-    for (int i = bl.i0; i <= iEnd; ++i) {
-      const std::size_t k = f.idx(i, j);
-      if (done[k]) continue;
-      const float u = w > 0 ? static_cast<float>(i - bl.i0) / static_cast<float>(w) : 0.0f;
-      float* p = rgb + 3 * k;
-      for (int c = 0; c < 3; ++c)
-        p[c] = (1 - u) * (1 - v) * c00[c] + u * (1 - v) * c10[c] + (1 - u) * v * c01[c] + u * v * c11[c];
+    // The row's two ends on the block's left and right edges, then linear across.
+    const float v = static_cast<float>(j - bl.j0) * invH;
+    float left[3], step[3];
+    for (int c = 0; c < 3; ++c) {
+      left[c] = c00[c] + v * (c01[c] - c00[c]);
+      step[c] = (c10[c] + v * (c11[c] - c10[c]) - left[c]) * invW;
     }
+    const std::size_t row = f.idx(0, j);
+    for (int i = bl.i0; i <= iEnd; ++i) {
+      const std::size_t k = row + static_cast<std::size_t>(i);
+      if (done[k]) continue;
+      const float u = static_cast<float>(i - bl.i0);
+      float* p = rgb + 3 * k;
+      p[0] = left[0] + u * step[0];
+      p[1] = left[1] + u * step[1];
+      p[2] = left[2] + u * step[2];
+    }
+  }
+}
+
+// The distance-edge mask and its summed-area table, once per frame. A pixel is an edge when
+// the second difference of 1/d across it (in x or in y) exceeds depth_edge_rel of the largest
+// 1/d involved: over a plane 1/d is affine in the pixel coordinates up to the slowly varying
+// 1/|ray| factor (second differences ~1e-7 relative), a silhouette or the sky line gives
+// differences of order 1, a crease between two surfaces flags the pixels along it.
+void buildEdgeSat(ThreadPool& pool, AirlightImageEvaluator::State& st, const Camera& cam, const SurfaceBuffers& surf,
+                  float tol) {
+  const std::size_t W = static_cast<std::size_t>(cam.width), H = static_cast<std::size_t>(cam.height);
+  const std::size_t w1 = W + 1;
+  st.edgeSat.resize(w1 * (H + 1));
+  std::fill_n(st.edgeSat.begin(), w1, 0u);  // row 0 of the table
+  struct Job {
+    AirlightImageEvaluator::State* st;
+    const SurfaceBuffers* surf;
+    std::size_t W, H;
+    float tol;
+  } job{&st, &surf, W, H, tol};
+  const Job* jp = &job;
+  // Rows in parallel: the mask and its prefix sum along the row, into table row j + 1.
+  pool.parallelFor(H, [jp](std::size_t j) {
+    const std::size_t nw = jp->W, nh = jp->H;
+    const float* d = jp->surf->distance.data();
+    auto q = [&](std::size_t i, std::size_t jj) {
+      const float x = d[jj * nw + i];
+      return std::isinf(x) ? 0.0f : 1.0f / x;
+    };
+    std::uint32_t* out = jp->st->edgeSat.data() + (j + 1) * (nw + 1);
+    out[0] = 0;
+    std::uint32_t run = 0;
+    for (std::size_t i = 0; i < nw; ++i) {
+      const float c = q(i, j);
+      bool edge = false;
+      if (i > 0 && i + 1 < nw) {
+        const float a = q(i - 1, j), b = q(i + 1, j);
+        edge = std::abs(a + b - 2.0f * c) > jp->tol * std::max({a, b, c});
+      }
+      if (!edge && j > 0 && j + 1 < nh) {
+        const float a = q(i, j - 1), b = q(i, j + 1);
+        edge = std::abs(a + b - 2.0f * c) > jp->tol * std::max({a, b, c});
+      }
+      run += edge ? 1u : 0u;
+      out[i + 1] = run;
+    }
+  });
+  // Columns: accumulate the rows (sequential in j, contiguous in i).
+  std::uint32_t* S = st.edgeSat.data();
+  for (std::size_t j = 2; j <= H; ++j) {
+    std::uint32_t* row = S + j * w1;
+    const std::uint32_t* prev = row - w1;
+    for (std::size_t i = 0; i < w1; ++i) row[i] += prev[i];
   }
 }
 
@@ -360,8 +469,10 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
 
   const std::size_t cap = kernels::paddedSize(n) + kChunk;
   if (st.bx.size() < cap) {
-    for (auto* v : {&st.bx, &st.by, &st.bd, &st.br, &st.bg, &st.bb}) v->assign(cap, 0.0f);
+    for (auto* v : {&st.bx, &st.by, &st.bd, &st.br, &st.bg, &st.bb, &st.sx, &st.sy, &st.sd, &st.sr, &st.sg, &st.sb})
+      v->assign(cap, 0.0f);
     st.bidx.assign(cap, 0);
+    st.sidx.assign(cap, 0);
   }
   st.done.assign(n, 0);  // no reallocation once sized
   FrameCtx f{&st, &lamps_, &cam, &surface, &out,
@@ -372,7 +483,12 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
 
   // Evaluates the batch st.bx/by/bd[0, st.bn) over the pool. The closure holds two pointers,
   // which std::function stores without allocating.
+  out.eval_seconds = out.judge_seconds = out.fill_seconds = 0.0;
+  auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
   auto runBatch = [&](bool identity) {
+    const auto tb = std::chrono::steady_clock::now();
     const std::size_t chunks = (st.bn + kChunk - 1) / kChunk;
     struct Job {
       State* st;
@@ -386,6 +502,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     });
     evaluated += st.bn;
     st.bn = 0;
+    out.eval_seconds += since(tb);
   };
 
   if (opt.full) {
@@ -406,6 +523,11 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     runBatch(true);
   } else {
     const int s = std::max(2, opt.coarse_step);
+    {
+      const auto tj = std::chrono::steady_clock::now();
+      buildEdgeSat(*pool_, st, cam, surface, static_cast<float>(opt.depth_edge_rel));
+      out.judge_seconds += since(tj);
+    }
     // Level 0: the coarse grid's corners.
     st.cur.clear();
     st.leaves.clear();
@@ -435,6 +557,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
       st.cur.resize(kept);
       runBatch(false);
       // Judge every block in parallel.
+      const auto tj = std::chrono::steady_clock::now();
       st.split.assign(st.cur.size(), 0);
       {
         struct Job {
@@ -448,6 +571,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
           for (std::size_t k = b; k < e; ++k) jp->st->split[k] = smoothBlock(*jp->f, jp->st->cur[k]) ? 0 : 1;
         });
       }
+      out.judge_seconds += since(tj);
       // Split blocks: the new corners become the next batch, the quadrants the next level.
       st.next.clear();
       for (std::size_t k = 0; k < st.cur.size(); ++k) {
@@ -477,6 +601,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
       std::swap(st.cur, st.next);
     }
     // Interpolate what was not evaluated.
+    const auto tf = std::chrono::steady_clock::now();
     struct Job {
       State* st;
       const FrameCtx* f;
@@ -487,6 +612,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
       const std::size_t b = c * 256, e = std::min(jp->st->leaves.size(), b + 256);
       for (std::size_t k = b; k < e; ++k) fillLeaf(*jp->f, jp->st->done, jp->st->leaves[k]);
     });
+    out.fill_seconds = since(tf);
   }
   out.evaluated = evaluated;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

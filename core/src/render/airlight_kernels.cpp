@@ -30,13 +30,6 @@ double thetaOfZeta(double z) {
   if (e <= 0.0) return std::copysign(kHalfPi, z);
   return std::atan(std::copysign(1.0 / (e * e) - 1.0, z));
 }
-// dθ/dζ = 2e / (e⁴ + (1 − e²)²), e = 1 − |ζ|: finite, → 0 at the ends.
-double dThetaDZeta(double z) {
-  const double e = 1.0 - std::abs(z);
-  const double s = 1.0 - e * e;
-  return 2.0 * e / (e * e * e * e + s * s);
-}
-
 double hermite(double t, double f0, double m0, double f1, double m1) {
   const double t2 = t * t, t3 = t2 * t;
   const double h01 = 3 * t2 - 2 * t3;
@@ -83,12 +76,12 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
   t->k0 = static_cast<float>(k0);
   const double logSpan = std::log1p(kMax / k0);
   t->uScale = static_cast<float>((nK - 1) / logSpan);
-  t->data.assign(static_cast<std::size_t>(nK) * static_cast<std::size_t>(nZ) * 2, 0.0f);
+  t->data.assign(static_cast<std::size_t>(nK) * static_cast<std::size_t>(nZ), 0.0f);
   const double dz = 2.0 / (nZ - 1);
   using GL = boost::math::quadrature::gauss<double, 8>;
   for (int i = 0; i < nK; ++i) {
     const double k = k0 * std::expm1(static_cast<double>(i) / (nK - 1) * logSpan);
-    float* row = t->data.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(nZ) * 2;
+    float* row = t->data.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(nZ);
     double sum = 0.0, thPrev = -kHalfPi;
     for (int j = 0; j < nZ; ++j) {
       const double z = -1.0 + j * dz;
@@ -97,8 +90,7 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
       if (j > 0 && th > thPrev)
         sum += GL::integrate([&](double x) { return integrandG(phase, k, x); }, thPrev, th);
       thPrev = th;
-      row[2 * j] = static_cast<float>(sum);
-      row[2 * j + 1] = static_cast<float>(integrandG(phase, k, th) * dThetaDZeta(z) * dz);
+      row[j] = static_cast<float>(sum);
     }
   }
   std::lock_guard<std::mutex> lock(mutex);
@@ -112,9 +104,9 @@ double IsoTable::lookup(double k, double q) const noexcept {
   cell(std::log1p(k / dbl(k0)) * dbl(uScale), nK, iu, tu);
   cell((zetaOfQ(q) + 1.0) * 0.5 * (nZ - 1), nZ, iz, tz);
   auto at = [&](int row) {
-    const float* c = data.data() + (static_cast<std::size_t>(row) * static_cast<std::size_t>(nZ) +
-                                    static_cast<std::size_t>(iz)) * 2;
-    return hermite(tz, dbl(c[0]), dbl(c[1]), dbl(c[2]), dbl(c[3]));
+    const float* c = data.data() + static_cast<std::size_t>(row) * static_cast<std::size_t>(nZ) +
+                     static_cast<std::size_t>(iz);
+    return dbl(c[0]) + tz * (dbl(c[1]) - dbl(c[0]));
   };
   const double a = at(iu), b = at(iu + 1);
   return a + tu * (b - a);

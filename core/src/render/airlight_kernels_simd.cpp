@@ -48,18 +48,17 @@ HWY_INLINE VF ZetaNode(DF d, VF q, float halfNz1) {
   return hn::Mul(hn::Add(hn::CopySign(z, q), one), hn::Set(d, halfNz1));
 }
 
-// F at (row pair, ζ node) of the iso table: linear in rows, Hermite in ζ.
+// F at (row pair, ζ node) of the iso table: bilinear.
 HWY_INLINE VF IsoF(DF d, DI di, const float* data, VI row0, VI rowStride, VF tu, VF gz, float nZm2) {
   VI iz;
   VF tz;
   Cell(d, di, gz, nZm2, iz, tz);
-  const VI i0 = hn::Add(row0, hn::Add(iz, iz));  // 2 floats per node
+  const VI i0 = hn::Add(row0, iz);
   const VI i1 = hn::Add(i0, rowStride);
-  const VI one = hn::Set(di, 1), two = hn::Set(di, 2), three = hn::Set(di, 3);
-  const VF a = Hermite(d, tz, hn::GatherIndex(d, data, i0), hn::GatherIndex(d, data, hn::Add(i0, one)),
-                       hn::GatherIndex(d, data, hn::Add(i0, two)), hn::GatherIndex(d, data, hn::Add(i0, three)));
-  const VF b = Hermite(d, tz, hn::GatherIndex(d, data, i1), hn::GatherIndex(d, data, hn::Add(i1, one)),
-                       hn::GatherIndex(d, data, hn::Add(i1, two)), hn::GatherIndex(d, data, hn::Add(i1, three)));
+  const VI one = hn::Set(di, 1);
+  const VF a0 = hn::GatherIndex(d, data, i0), a1 = hn::GatherIndex(d, data, hn::Add(i0, one));
+  const VF b0 = hn::GatherIndex(d, data, i1), b1 = hn::GatherIndex(d, data, hn::Add(i1, one));
+  const VF a = hn::MulAdd(tz, hn::Sub(a1, a0), a0), b = hn::MulAdd(tz, hn::Sub(b1, b0), b0);
   return hn::MulAdd(tu, hn::Sub(b, a), a);
 }
 
@@ -70,7 +69,7 @@ void AccumulateIsoLamps(const IsoTable& table, const IsoLamp* lamps, std::size_t
   const std::size_t N = hn::Lanes(d);
   const float nZm2 = static_cast<float>(table.nZ - 2), nKm2 = static_cast<float>(table.nK - 2);
   const float halfNz1 = 0.5f * static_cast<float>(table.nZ - 1);
-  const VI rowStride = hn::Set(di, 2 * table.nZ);
+  const VI rowStride = hn::Set(di, table.nZ);
   const float* data = table.data.data();
   for (std::size_t i = 0; i < px.n; i += N) {
     const VF x = hn::LoadU(d, px.x + i), y = hn::LoadU(d, px.y + i), dist = hn::LoadU(d, px.d + i);

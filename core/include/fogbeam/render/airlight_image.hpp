@@ -55,6 +55,9 @@ struct AirlightImage {
   std::size_t evaluated = 0;     ///< pixels whose rays were evaluated (the rest interpolated)
   double seconds = 0.0;          ///< wall time of the last evaluate(), table builds included
   double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view tables
+  double eval_seconds = 0.0;     ///< part spent evaluating pixels (kernels and per-ray lamps)
+  double judge_seconds = 0.0;    ///< part spent testing blocks (subsampling)
+  double fill_seconds = 0.0;     ///< part spent interpolating (subsampling)
 };
 
 class AirlightImageEvaluator {

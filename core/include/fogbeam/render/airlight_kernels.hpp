@@ -8,9 +8,10 @@
 //  * IsoTable — isotropic lamps. For I constant, eq. (3) of Lecocq et al. 2001 is
 //        L_m = Ω K_t I e^{−K_t p} / h · [F(k, θd) − F(k, θ0)],   F(k, θ) = ∫_{−π/2}^{θ} G(k, θ') dθ',
 //    the Sun et al. 2005 "F table": it depends on the phase function only. It is tabulated
-//    over u = log1p(k/k0) / log1p(kmax/k0) (linear) and ζ = sgn q (1 − (1 + |q|)^{−1/2}),
-//    q = tan θ (cubic Hermite, dF/dζ stored), which clusters nodes at θ → ±π/2 like the
-//    accurate method's own tables and needs no trigonometry per pixel.
+//    over u = log1p(k/k0) / log1p(kmax/k0) and ζ = sgn q (1 − (1 + |q|)^{−1/2}), q = tan θ,
+//    which clusters nodes at θ → ±π/2 like the accurate method's own tables and needs no
+//    trigonometry per pixel; bilinear on a dense grid (8192 ζ nodes): two gathers per row
+//    where cubic Hermite on a coarser one needs four, and gathers are what the kernel waits on.
 //  * ViewTable — a lamp fixed to the camera (a vehicle's own headlamps seen from its driver's
 //    eye). Then L_m depends only on the pixel's direction and its distance d, and is tabulated
 //    once from the accurate method (AirlightEvaluator::evaluateCumulative): directions on a
@@ -37,7 +38,7 @@
 
 namespace fogbeam::kernels {
 
-/// F(k, ζ) for one phase function. data: per (k row, ζ node) the pair (F, dF/dζ · Δζ).
+/// F(k, ζ) for one phase function. data: nK rows of nZ values.
 struct IsoTable {
   int nK = 0, nZ = 0;
   float k0 = 0.0f;         ///< k scale of the log axis
@@ -47,8 +48,8 @@ struct IsoTable {
   [[nodiscard]] std::size_t bytes() const noexcept { return data.size() * sizeof(float); }
 
   /// Builds (or returns the cached) table for `phase`: nK × nZ nodes, Gauss–Legendre
-  /// integration of G between nodes. About 0.1 s; cached per phase (weakly held).
-  [[nodiscard]] static std::shared_ptr<const IsoTable> get(const Phase& phase, int nK = 256, int nZ = 2048,
+  /// integration of G between nodes. About 0.3 s; cached per phase (weakly held).
+  [[nodiscard]] static std::shared_ptr<const IsoTable> get(const Phase& phase, int nK = 192, int nZ = 8192,
                                                            double kMax = 100.0);
   /// Scalar F(k, θ) from the table (double arithmetic): the reference for the SIMD kernel.
   [[nodiscard]] double lookup(double k, double q) const noexcept;
