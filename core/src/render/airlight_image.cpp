@@ -16,6 +16,8 @@ namespace {
 // Batches are cut into chunks of this many pixels for the thread pool; a multiple of 64 so
 // every chunk starts on a whole SIMD vector of any width (kernels::paddedSize).
 constexpr std::size_t kChunk = 2048;
+// View tables per vehicle lamp: the frustum table and two insets around the lamp's image.
+constexpr std::size_t kTablesPerLamp = 3;
 
 struct Block {
   int i0, j0, i1, j1;  // inclusive corner pixels, all four already evaluated
@@ -38,9 +40,9 @@ struct AirlightImageEvaluator::State {
   // Lamp routing (indices into lamps_).
   std::vector<std::size_t> isoLamps, viewLamps, rayLamps;
   std::shared_ptr<const kernels::IsoTable> isoTable;
-  // Per vehicle lamp v: viewTables[2v] covers the frustum except a hole around the lamp's
-  // image, viewTables[2v + 1] (empty when the lamp is not in front) the ring around it, and
-  // rayGuards[v] the last few pixels, evaluated per ray.
+  // Per vehicle lamp v: viewTables[kTablesPerLamp·v] covers the frustum except a hole around
+  // the lamp's image, the next ones (empty when the lamp is not in front) finer rings inside
+  // it, and rayGuards[v] the last few pixels, evaluated per ray.
   std::vector<kernels::ViewTable> viewTables;
   struct RayGuard {
     double a = 0.0, b = 0.0, r2 = -1.0;  // tangent-plane centre and squared radius
@@ -60,6 +62,7 @@ struct AirlightImageEvaluator::State {
   std::vector<std::pair<double, double>> lampPixels;
   std::vector<float> fullX, fullY;  // pixel centres for full mode
   std::vector<std::uint32_t> edgeSat;  // summed-area table of the distance-edge mask, (W+1)×(H+1)
+  std::vector<float> invDist;          // 1/d per pixel, 0 for the sky
   // Compacted sub-batches for tables and guards that cover a small disc (same layout as bx…).
   std::vector<float> sx, sy, sd, sr, sg, sb;
   std::vector<std::uint32_t> sidx;
@@ -88,7 +91,7 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
       st.rayLamps.push_back(i);
   }
   if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
-  st.viewTables.resize(2 * st.viewLamps.size());
+  st.viewTables.resize(kTablesPerLamp * st.viewLamps.size());
   st.rayGuards.resize(st.viewLamps.size());
   st.viewKeys.resize(st.viewLamps.size());
   st.viewValid.assign(st.viewLamps.size(), false);
@@ -349,6 +352,7 @@ void buildEdgeSat(ThreadPool& pool, AirlightImageEvaluator::State& st, const Cam
   const std::size_t W = static_cast<std::size_t>(cam.width), H = static_cast<std::size_t>(cam.height);
   const std::size_t w1 = W + 1;
   st.edgeSat.resize(w1 * (H + 1));
+  st.invDist.resize(W * H);
   std::fill_n(st.edgeSat.begin(), w1, 0u);  // row 0 of the table
   struct Job {
     AirlightImageEvaluator::State* st;
@@ -357,39 +361,37 @@ void buildEdgeSat(ThreadPool& pool, AirlightImageEvaluator::State& st, const Cam
     float tol;
   } job{&st, &surf, W, H, tol};
   const Job* jp = &job;
-  // Rows in parallel: the mask and its prefix sum along the row, into table row j + 1.
+  // 1/d per pixel (0 for the sky), rows in parallel; branch-free so the loop vectorises.
+  pool.parallelFor(H, [jp](std::size_t j) {
+    const float* d = jp->surf->distance.data() + j * jp->W;
+    float* q = jp->st->invDist.data() + j * jp->W;
+    for (std::size_t i = 0; i < jp->W; ++i) q[i] = 1.0f / d[i];  // 1/+inf = 0
+  });
+  // The mask and its prefix sum along each row, into table row j + 1.
   pool.parallelFor(H, [jp](std::size_t j) {
     const std::size_t nw = jp->W, nh = jp->H;
-    const float* d = jp->surf->distance.data();
-    auto q = [&](std::size_t i, std::size_t jj) {
-      const float x = d[jj * nw + i];
-      return std::isinf(x) ? 0.0f : 1.0f / x;
-    };
+    const float* q = jp->st->invDist.data();
+    const float* c = q + j * nw;
+    const float* up = j > 0 ? c - nw : c;           // rows beyond the image: no y test
+    const float* dn = j + 1 < nh ? c + nw : c;
+    const bool yTest = j > 0 && j + 1 < nh;
     std::uint32_t* out = jp->st->edgeSat.data() + (j + 1) * (nw + 1);
     out[0] = 0;
-    std::uint32_t run = 0;
-    for (std::size_t i = 0; i < nw; ++i) {
-      const float c = q(i, j);
-      bool edge = false;
-      if (i > 0 && i + 1 < nw) {
-        const float a = q(i - 1, j), b = q(i + 1, j);
-        edge = std::abs(a + b - 2.0f * c) > jp->tol * std::max({a, b, c});
-      }
-      if (!edge && j > 0 && j + 1 < nh) {
-        const float a = q(i, j - 1), b = q(i, j + 1);
-        edge = std::abs(a + b - 2.0f * c) > jp->tol * std::max({a, b, c});
-      }
-      run += edge ? 1u : 0u;
-      out[i + 1] = run;
+    kernels::markDistanceEdges(yTest ? up : nullptr, c, yTest ? dn : nullptr, nw, jp->tol, out + 1);
+    for (std::size_t i = 1; i <= nw; ++i) out[i] += out[i - 1];
+  });
+  // Columns: accumulate the rows, in strips of columns in parallel.
+  constexpr std::size_t kStrip = 256;
+  pool.parallelFor((w1 + kStrip - 1) / kStrip, [jp](std::size_t strip) {
+    const std::size_t nw1 = jp->W + 1;
+    const std::size_t i0 = strip * kStrip, i1 = std::min(nw1, i0 + kStrip);
+    std::uint32_t* S = jp->st->edgeSat.data();
+    for (std::size_t j = 2; j <= jp->H; ++j) {
+      std::uint32_t* row = S + j * nw1;
+      const std::uint32_t* prev = row - nw1;
+      for (std::size_t i = i0; i < i1; ++i) row[i] += prev[i];
     }
   });
-  // Columns: accumulate the rows (sequential in j, contiguous in i).
-  std::uint32_t* S = st.edgeSat.data();
-  for (std::size_t j = 2; j <= H; ++j) {
-    std::uint32_t* row = S + j * w1;
-    const std::uint32_t* prev = row - w1;
-    for (std::size_t i = 0; i < w1; ++i) row[i] += prev[i];
-  }
 }
 
 }  // namespace
@@ -431,33 +433,42 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
                       cam.fov_x, static_cast<double>(cam.height) / cam.width, ev.medium().extinction_per_m,
                       ev.medium().albedo};
     if (st.viewValid[v] && st.viewKeys[v] == key) continue;
-    kernels::ViewTable& main = st.viewTables[2 * v];
-    kernels::ViewTable& inset = st.viewTables[2 * v + 1];
-    main = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_);
-    inset = kernels::ViewTable{};
+    kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
+    tables[0] = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_);
+    for (std::size_t t = 1; t < kTablesPerLamp; ++t) tables[t] = kernels::ViewTable{};
     st.rayGuards[v] = {};
     if (key.lampInCamera.x > 0.0) {
       // Near its own image a lamp's airlight changes fast with direction: a 1/α peak, which
       // bilinear interpolation over a step δ follows within (δ/α)²/8 (1 % from α = 5δ), and
       // the beam's cut-off crossing the ray close to the lamp. Measured on the bench scene
-      // (docs/airlight.md), the frustum table is within 1 % from 15 of its steps out; the inset,
-      // 4× finer, covers the disc inside that down to 5 of its own steps; per ray inside.
+      // (docs/airlight.md), the frustum table is within 1 % from 15 of its steps out. Insets,
+      // each 4× finer than the last, cover the disc inside down to 5 of their own steps; the
+      // pixels left (about 2 px across at 1080p) are evaluated per ray.
       constexpr double kMainGuardSteps = 15.0, kInsetRefine = 4.0, kInsetGuardSteps = 5.0;
       const double la = key.lampInCamera.y / key.lampInCamera.x, lb = key.lampInCamera.z / key.lampInCamera.x;
-      const double step = 1.0 / static_cast<double>(main.invStep), fine = step / kInsetRefine;
-      const double r1 = kMainGuardSteps * step, r0 = kInsetGuardSteps * fine;
-      const int nodes = static_cast<int>(std::ceil(2.0 * (r1 + 2.0 * fine) / fine)) + 1;
-      inset = kernels::ViewTable::buildWindow(ev, cam, la - r1 - 2.0 * fine, lb - r1 - 2.0 * fine, nodes, nodes, fine,
-                                              st.fast.view_table_distances, *pool_);
-      main.guardA = inset.guardA = static_cast<float>(la);
-      main.guardB = inset.guardB = static_cast<float>(lb);
-      main.innerR2 = inset.outerR2 = static_cast<float>(r1 * r1);
-      inset.innerR2 = static_cast<float>(r0 * r0);
-      st.rayGuards[v] = {la, lb, static_cast<double>(inset.innerR2)};
+      double step = 1.0 / static_cast<double>(tables[0].invStep);
+      double outer = kMainGuardSteps * step;
+      tables[0].guardA = static_cast<float>(la);
+      tables[0].guardB = static_cast<float>(lb);
+      tables[0].innerR2 = static_cast<float>(outer * outer);
+      for (std::size_t t = 1; t < kTablesPerLamp; ++t) {
+        step /= kInsetRefine;
+        const double inner = kInsetGuardSteps * step;
+        const int nodes = static_cast<int>(std::ceil(2.0 * (outer + 2.0 * step) / step)) + 1;
+        kernels::ViewTable& in = tables[t];
+        in = kernels::ViewTable::buildWindow(ev, cam, la - outer - 2.0 * step, lb - outer - 2.0 * step, nodes, nodes,
+                                             step, st.fast.view_table_distances, *pool_);
+        in.guardA = static_cast<float>(la);
+        in.guardB = static_cast<float>(lb);
+        in.outerR2 = static_cast<float>(outer * outer);
+        in.innerR2 = static_cast<float>(inner * inner);
+        outer = inner;
+      }
+      st.rayGuards[v] = {la, lb, outer * outer};
     }
     st.viewKeys[v] = key;
     st.viewValid[v] = true;
-    out.table_seconds += main.build_seconds + inset.build_seconds;
+    for (std::size_t t = 0; t < kTablesPerLamp; ++t) out.table_seconds += tables[t].build_seconds;
   }
   // Image positions of lamps in front of the camera (capacity kept between frames).
   st.lampPixels.clear();

@@ -14,6 +14,10 @@
 
 #include <fogbeam/render/airlight_kernels.hpp>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
 HWY_BEFORE_NAMESPACE();
 namespace fogbeam::kernels::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
@@ -156,6 +160,34 @@ void AccumulateViewTable(const ViewTable& table, const PixelGeometry& g, const P
   }
 }
 
+void MarkDistanceEdges(const float* up, const float* c, const float* dn, std::size_t n, float tol,
+                       std::uint32_t* out) {
+  const DF d;
+  const hn::RebindToUnsigned<DF> du;
+  const std::size_t N = hn::Lanes(d);
+  const VF t = hn::Set(d, tol), two = hn::Set(d, 2.0f);
+  auto second = [&](VF a, VF b, VF m) {
+    // |a + b − 2m| > tol · max(a, b, m)
+    return hn::Gt(hn::Abs(hn::NegMulAdd(two, m, hn::Add(a, b))), hn::Mul(t, hn::Max(hn::Max(a, b), m)));
+  };
+  auto scalarAt = [&](std::size_t i) {
+    auto edge = [&](float a, float b, float m) { return std::abs(a + b - 2.0f * m) > tol * std::max(std::max(a, b), m); };
+    bool e = i > 0 && i + 1 < n && edge(c[i - 1], c[i + 1], c[i]);
+    if (up && dn) e = e || edge(up[i], dn[i], c[i]);
+    out[i] = e ? 1u : 0u;
+  };
+  std::size_t i = 0;
+  scalarAt(0);
+  i = 1;
+  for (; i + N + 1 <= n; i += N) {
+    const VF m = hn::LoadU(d, c + i);
+    auto e = second(hn::LoadU(d, c + i - 1), hn::LoadU(d, c + i + 1), m);
+    if (up && dn) e = hn::Or(e, second(hn::LoadU(d, up + i), hn::LoadU(d, dn + i), m));
+    hn::StoreU(hn::IfThenElseZero(hn::RebindMask(du, e), hn::Set(du, 1u)), du, out + i);
+  }
+  for (; i < n; ++i) scalarAt(i);
+}
+
 const char* TargetNameHere() { return hwy::TargetName(HWY_TARGET); }
 
 }  // namespace fogbeam::kernels::HWY_NAMESPACE
@@ -167,6 +199,11 @@ namespace fogbeam::kernels {
 HWY_EXPORT(AccumulateIsoLamps);
 HWY_EXPORT(AccumulateViewTable);
 HWY_EXPORT(TargetNameHere);
+HWY_EXPORT(MarkDistanceEdges);
+
+void markDistanceEdges(const float* up, const float* c, const float* dn, std::size_t n, float tol, std::uint32_t* out) {
+  HWY_DYNAMIC_DISPATCH(MarkDistanceEdges)(up, c, dn, n, tol, out);
+}
 
 void accumulateIsoLamps(const IsoTable& table, const IsoLamp* lamps, std::size_t nLamps, const PixelGeometry& g,
                         const PixelBatch& px, float* r, float* gr, float* b) {

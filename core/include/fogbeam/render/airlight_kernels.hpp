@@ -32,6 +32,7 @@
 #include <fogbeam/util/thread_pool.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -128,6 +129,12 @@ void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::
                               const PixelBatch& px, float* r, float* gr, float* b);
 void accumulateViewTableScalar(const ViewTable& table, const PixelGeometry& g, const PixelBatch& px, float* r,
                                float* gr, float* b);
+
+/// Distance-edge mask of one image row (SIMD): out[i] = 1 where the second difference of the
+/// inverse distance q across pixel i, along the row (c[i−1], c[i], c[i+1]) or, when `up` and
+/// `dn` (the rows above and below) are given, across the rows, exceeds tol · the largest q
+/// involved; 0 elsewhere. The row's first and last pixels get the cross-row test only.
+void markDistanceEdges(const float* up, const float* c, const float* dn, std::size_t n, float tol, std::uint32_t* out);
 
 /// Names of the SIMD targets compiled in and supported by this CPU (e.g. "AVX3", "AVX2"),
 /// best first, and the one the kernels dispatch to.
