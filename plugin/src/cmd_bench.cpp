@@ -10,6 +10,7 @@
 // the vehicle-mounted lamps; it is reported on its own line, not among the timed frames.
 #include "commands.hpp"
 
+#include <fogbeam/gl/airlight_pass.hpp>
 #include <fogbeam/gl/surface_pass.hpp>
 
 #include <fogbeam/render/airlight_image.hpp>
@@ -28,6 +29,7 @@
 #include <fstream>
 #include <functional>
 #include <memory>
+#include <numeric>
 #include <random>
 #include <string>
 #include <thread>
@@ -61,6 +63,7 @@ struct BenchOptions {
   unsigned seed = 1;
   double stageBudgetSeconds = 30.0;  // wall time allowed to each airlight stage per size
   int maxRayMarchSteps = 1 << 14;
+  double viewTableStepDeg = FastPathOptions{}.view_table_step_deg;
 };
 
 // Figures of one stage over repeated frames, in milliseconds.
@@ -175,7 +178,7 @@ struct Evaluators {
 
 // One image size: every figure of the table, as JSON (the table is printed from it).
 json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
-               GlSurfacePass* gl) {
+               GlSurfacePass* gl, GlAirlightPass* glAir) {
   scene.camera.width = width;
   scene.camera.height = height;
   const Camera& cam = scene.camera;
@@ -255,6 +258,48 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   }
   const std::size_t fullEvaluated = full.evaluated;
 
+  // The same per-pixel table formula as a GLSL full-screen shader (GlAirlightPass), on the
+  // same frame and tables: draw (GPU timer), distance upload and readback, and its difference
+  // from the CPU image outside the per-ray discs at the vehicle lamps' images.
+  json glAirlight = {{"available", false}, {"note", glAir ? "" : "GL: not available"}};
+  if (glAir) {
+    StageStats draw, upload, readback, total;
+    std::vector<float> glRgb;
+    std::string failure;
+    const auto view = ev.accurate.fastPathView();
+    for (int f = 0; f < o.frames; ++f) {
+      const auto t0 = Clock::now();
+      if (Status st = glAir->render(cam, view, surface, glRgb); !st) {
+        failure = st.error().message;
+        break;
+      }
+      total.ms.push_back(msSince(t0));
+      draw.ms.push_back(glAir->stats().draw_ms);
+      upload.ms.push_back(glAir->stats().upload_ms - glAir->stats().table_upload_ms);
+      readback.ms.push_back(glAir->stats().readback_ms);
+      if (f > 0 && std::accumulate(total.ms.begin(), total.ms.end(), 0.0) > 1e3 * o.stageBudgetSeconds) break;
+    }
+    if (failure.empty()) {
+      std::vector<double> lGl, lCpu;
+      const double f = cam.focalLengthPixels();
+      for (int j = 0; j < height; ++j)
+        for (int i = 0; i < width; ++i) {
+          const double a = (0.5 * width - (i + 0.5)) / f, b = (0.5 * height - (j + 0.5)) / f;
+          bool guarded = false;
+          for (const auto& g : view.guards) guarded |= (a - g[0]) * (a - g[0]) + (b - g[1]) * (b - g[1]) <= g[2];
+          if (guarded) continue;
+          const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(width) + static_cast<std::size_t>(i);
+          lGl.push_back(luminance(&glRgb[3 * k]));
+          lCpu.push_back(luminance(&full.rgb[3 * k]));
+        }
+      glAirlight = {{"available", true}, {"note", glAir->description()}, {"total", total.toJson()},
+                    {"draw", draw.toJson()}, {"distance_upload", upload.toJson()}, {"readback", readback.toJson()},
+                    {"vs_cpu_full", relativeErrors(lGl, lCpu).toJson()}};
+    } else {
+      glAirlight = {{"available", false}, {"note", "GL airlight failed: " + failure}};
+    }
+  }
+
   // Composite.
   FrameLayers layers;
   StageStats compStats;
@@ -273,6 +318,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   stages["airlight_full"] = fullStats.toJson();
   stages["airlight_full"]["evaluated_pixels"] = fullEvaluated;
   stages["airlight_first_frame"] = {{"ms", warmMs}, {"view_table_build_ms", tableMs}};
+  stages["airlight_glsl"] = glAirlight;
   stages["composite"] = compStats.toJson();
   r["stages"] = stages;
   r["pipeline_subsampled_ms"] = pipelineMs;
@@ -404,6 +450,15 @@ void printSize(const json& r) {
   std::printf("  %-30s %9.2f ms  (of which view-table build %.2f ms; reused by later frames)\n",
               "airlight first frame", s["airlight_first_frame"]["ms"].get<double>(),
               s["airlight_first_frame"]["view_table_build_ms"].get<double>());
+  if (s["airlight_glsl"]["available"].get<bool>()) {
+    printStage("airlight GLSL, full: total", s["airlight_glsl"]["total"]);
+    printStage("  of which draw (GPU timer)", s["airlight_glsl"]["draw"]);
+    printStage("  of which distance upload", s["airlight_glsl"]["distance_upload"]);
+    printStage("  of which readback", s["airlight_glsl"]["readback"]);
+    printError("  GLSL vs CPU image, full", s["airlight_glsl"]["vs_cpu_full"]);
+  } else {
+    std::printf("  %-30s %s\n", "airlight GLSL", s["airlight_glsl"]["note"].get<std::string>().c_str());
+  }
   printStage("composite", s["composite"]);
   std::printf("  %-30s %9.2f ms  = %.1f frames/s (%s + airlight subsampled + composite)\n", "pipeline, subsampled",
               r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>(),
@@ -445,6 +500,7 @@ int run(BenchOptions o) {
     o.sizes = {"320x180"};
     o.frames = 2;
     o.stageBudgetSeconds = 3.0;
+    o.viewTableStepDeg = 0.5;
   }
   std::vector<std::pair<int, int>> sizes;
   for (const std::string& s : o.sizes) {
@@ -466,8 +522,13 @@ int run(BenchOptions o) {
   std::printf("  machine   %s, %u logical cores; %u threads\n", cpu.c_str(), std::thread::hardware_concurrency(), threads);
   std::printf("  compiler  GCC %s; build type %s; flags '%s'\n", __VERSION__, FOGBEAM_BUILD_TYPE, compileFlags().c_str());
   std::unique_ptr<GlSurfacePass> gl;
+  std::unique_ptr<GlAirlightPass> glAir;
   if (auto created = GlSurfacePass::create()) gl = std::move(created).value();
   else std::printf("  surface   GL unavailable (%s); CPU planes only\n", created.error().message.c_str());
+  if (gl) {
+    if (auto created = GlAirlightPass::create()) glAir = std::move(created).value();
+    else std::printf("  airlight  GLSL pass unavailable: %s\n", created.error().message.c_str());
+  }
   const std::string road = scene->gltf_path ? "glTF " + *scene->gltf_path + (gl ? "" : " (not drawn without GL)") : "planes only";
   std::printf("  scene     %zu lamps, %zu planes, K_t %.4f /m, %s; geometry: %s\n", scene->lamps.size(),
               scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str(), road.c_str());
@@ -477,7 +538,9 @@ int run(BenchOptions o) {
   auto ref = AirlightImageEvaluator::build(*scene, AirlightMethod::Reference, {}, threads);
   auto seed = AirlightImageEvaluator::build(*scene, AirlightMethod::Seed, {}, threads);
   const auto tAcc = Clock::now();
-  auto acc = AirlightImageEvaluator::build(*scene, AirlightMethod::Accurate, {}, threads);
+  FastPathOptions fast;
+  fast.view_table_step_deg = o.viewTableStepDeg;
+  auto acc = AirlightImageEvaluator::build(*scene, AirlightMethod::Accurate, {}, threads, fast);
   const double accBuildMs = msSince(tAcc), buildMs = msSince(t0);
   for (const auto* e : {&ref, &seed, &acc})
     if (!*e) {
@@ -507,7 +570,7 @@ int run(BenchOptions o) {
   root["airlight_paths"] = ev.accurate.describe();
   root["sizes"] = json::array();
   for (const auto& [w, h] : sizes) {
-    json r = benchSize(*scene, w, h, o, ev, pool, gl.get());
+    json r = benchSize(*scene, w, h, o, ev, pool, gl.get(), glAir.get());
     printSize(r);
     std::fflush(stdout);
     root["sizes"].push_back(std::move(r));
@@ -535,14 +598,16 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--sizes", o->sizes, "image sizes WIDTHxHEIGHT, comma-separated (default 1280x720,1920x1080)")
       ->delimiter(',');
   sub->add_option("--frames", o->frames, "repeated frames per stage (default 5)")->check(CLI::Range(1, 1000));
-  sub->add_flag("--quick", o->quick, "CI mode: 320x180, 2 frames");
+  sub->add_flag("--quick", o->quick, "CI mode: 320x180, 2 frames, view tables at 0.5 deg");
+  sub->add_option("--view-table-step", o->viewTableStepDeg,
+                  "view-table direction spacing, degrees (default 0.2, the renderer's default)")
+      ->check(CLI::Range(0.01, 5.0));
   sub->add_option("--json", o->jsonPath, "also write every figure to this JSON file");
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
   sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
       ->check(CLI::Range(10, 1000000));
   sub->add_option("--stage-budget", o->stageBudgetSeconds,
-                  "seconds allowed to each airlight stage per size: fewer frames (at least 1), and the full "
-                  "per-pixel stage measured on evenly spaced rows and extrapolated when a whole frame does not fit "
+                  "seconds allowed to each airlight stage per size: fewer frames (at least 1) when they do not fit "
                   "(default 30; --quick: 3)")
       ->check(CLI::Range(0.0, 3600.0));
   sub->add_option("--max-raymarch-steps", o->maxRayMarchSteps,

@@ -1,5 +1,7 @@
 #include "shader_library.hpp"
 
+#include <algorithm>
+
 #include <cstdlib>
 #include <fstream>
 #include <set>
@@ -57,6 +59,57 @@ Result<std::string> shaderSource(const std::string& name) {
   std::string out;
   if (Status s = expand(name, seen, out); !s) return s.error();
   return out;
+}
+
+namespace {
+
+Result<GLuint> compileShader(GLenum stage, const std::string& name) {
+  auto src = shaderSource(name);
+  if (!src) return src.error();
+  const GLuint sh = glCreateShader(stage);
+  const char* text = src->c_str();
+  glShaderSource(sh, 1, &text, nullptr);
+  glCompileShader(sh);
+  GLint ok = GL_FALSE;
+  glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint len = 0;
+    glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
+    std::string log(static_cast<std::size_t>(std::max(len, 1)), '\0');
+    glGetShaderInfoLog(sh, len, nullptr, log.data());
+    glDeleteShader(sh);
+    return Error{"shader " + name + " does not compile:\n" + log};
+  }
+  return sh;
+}
+
+}  // namespace
+
+Result<GLuint> linkProgram(const std::string& vert, const std::string& frag) {
+  auto vs = compileShader(GL_VERTEX_SHADER, vert);
+  if (!vs) return vs.error();
+  auto fs = compileShader(GL_FRAGMENT_SHADER, frag);
+  if (!fs) {
+    glDeleteShader(*vs);
+    return fs.error();
+  }
+  const GLuint prog = glCreateProgram();
+  glAttachShader(prog, *vs);
+  glAttachShader(prog, *fs);
+  glLinkProgram(prog);
+  glDeleteShader(*vs);
+  glDeleteShader(*fs);
+  GLint ok = GL_FALSE;
+  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  if (ok != GL_TRUE) {
+    GLint len = 0;
+    glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
+    std::string log(static_cast<std::size_t>(std::max(len, 1)), '\0');
+    glGetProgramInfoLog(prog, len, nullptr, log.data());
+    glDeleteProgram(prog);
+    return Error{"program " + vert + " + " + frag + " does not link:\n" + log};
+  }
+  return prog;
 }
 
 }  // namespace fogbeam::gl

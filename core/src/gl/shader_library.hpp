@@ -2,6 +2,8 @@
 // from $FOGBEAM_SHADER_DIR at run time when that variable is set (shader development).
 #pragma once
 
+#include "gl_headers.hpp"
+
 #include <fogbeam/util/result.hpp>
 
 #include <cstddef>
@@ -19,5 +21,9 @@ extern const std::size_t kEmbeddedShaderCount;
 /// The source of shader `name` with every `#include "file"` line replaced by that file's text
 /// (recursively; a file is included once). Errors name the file and the missing include.
 [[nodiscard]] Result<std::string> shaderSource(const std::string& name);
+
+/// Compiles two shaders from the library and links them; errors carry the info log.
+/// A GL context must be current.
+[[nodiscard]] Result<GLuint> linkProgram(const std::string& vert, const std::string& frag);
 
 }  // namespace fogbeam::gl

@@ -85,53 +85,6 @@ void setVec(float (&dst)[4], const Vec3& v, double w = 0.0) {
   dst[3] = static_cast<float>(w);
 }
 
-Result<GLuint> compileShader(GLenum stage, const std::string& name) {
-  auto src = gl::shaderSource(name);
-  if (!src) return src.error();
-  const GLuint sh = glCreateShader(stage);
-  const char* text = src->c_str();
-  glShaderSource(sh, 1, &text, nullptr);
-  glCompileShader(sh);
-  GLint ok = GL_FALSE;
-  glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
-  if (ok != GL_TRUE) {
-    GLint len = 0;
-    glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
-    std::string log(static_cast<std::size_t>(std::max(len, 1)), '\0');
-    glGetShaderInfoLog(sh, len, nullptr, log.data());
-    glDeleteShader(sh);
-    return Error{"shader " + name + " does not compile:\n" + log};
-  }
-  return sh;
-}
-
-Result<GLuint> linkProgram(const std::string& vert, const std::string& frag) {
-  auto vs = compileShader(GL_VERTEX_SHADER, vert);
-  if (!vs) return vs.error();
-  auto fs = compileShader(GL_FRAGMENT_SHADER, frag);
-  if (!fs) {
-    glDeleteShader(*vs);
-    return fs.error();
-  }
-  const GLuint prog = glCreateProgram();
-  glAttachShader(prog, *vs);
-  glAttachShader(prog, *fs);
-  glLinkProgram(prog);
-  glDeleteShader(*vs);
-  glDeleteShader(*fs);
-  GLint ok = GL_FALSE;
-  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
-  if (ok != GL_TRUE) {
-    GLint len = 0;
-    glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
-    std::string log(static_cast<std::size_t>(std::max(len, 1)), '\0');
-    glGetProgramInfoLog(prog, len, nullptr, log.data());
-    glDeleteProgram(prog);
-    return Error{"program " + vert + " + " + frag + " does not link:\n" + log};
-  }
-  return prog;
-}
-
 void GLAPIENTRY debugCallback(GLenum, GLenum type, GLuint, GLenum severity, GLsizei, const GLchar* message, const void*) {
   if (severity == GL_DEBUG_SEVERITY_NOTIFICATION) return;
   std::fprintf(stderr, "fogbeam_gl: GL debug%s: %s\n", type == GL_DEBUG_TYPE_ERROR ? " (error)" : "", message);
@@ -198,10 +151,10 @@ struct GlSurfacePass::Impl {
   }
 
   Status init() {
-    auto plane = linkProgram("surface_fullscreen.vert", "surface_plane.frag");
+    auto plane = gl::linkProgram("surface_fullscreen.vert", "surface_plane.frag");
     if (!plane) return plane.error();
     planeProgram = *plane;
-    auto mesh = linkProgram("surface_mesh.vert", "surface_mesh.frag");
+    auto mesh = gl::linkProgram("surface_mesh.vert", "surface_mesh.frag");
     if (!mesh) return mesh.error();
     meshProgram = *mesh;
     planeWorldFromCamera = glGetUniformLocation(planeProgram, "uWorldFromCamera");

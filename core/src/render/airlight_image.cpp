@@ -122,6 +122,18 @@ std::string AirlightImageEvaluator::describe() const {
   return o.str();
 }
 
+AirlightImageEvaluator::FastPathView AirlightImageEvaluator::fastPathView() const {
+  const State& st = *state_;
+  FastPathView v;
+  v.isoTable = st.isoTable.get();
+  v.isoLamps = &st.isoParams;
+  v.viewTables = &st.viewTables;
+  for (const auto& g : st.rayGuards)
+    if (g.r2 >= 0.0) v.guards.push_back({g.a, g.b, g.r2});
+  v.complete = st.rayLamps.empty();
+  return v;
+}
+
 std::size_t AirlightImageEvaluator::fastTableBytes() const noexcept {
   std::size_t n = state_->isoTable ? state_->isoTable->bytes() : 0;  // shared per phase
   for (const auto& vt : state_->viewTables) n += vt.bytes();

@@ -19,11 +19,13 @@
 #pragma once
 
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -79,6 +81,19 @@ class AirlightImageEvaluator {
   [[nodiscard]] std::string describe() const;
   /// Bytes held by this evaluator's fast-path tables (view tables and the F table).
   [[nodiscard]] std::size_t fastTableBytes() const noexcept;
+
+  /// The fast path's tables and the latest frame's lamp parameters, for the GL twin of the
+  /// kernels (GlAirlightPass). Valid until the next evaluate(). `complete` is false when some
+  /// lamps go per ray (they are not in the tables); `guards` lists the discs (tangent-plane
+  /// centre a, b and squared radius) where vehicle lamps go per ray.
+  struct FastPathView {
+    const kernels::IsoTable* isoTable = nullptr;
+    const std::vector<kernels::IsoLamp>* isoLamps = nullptr;
+    const std::vector<kernels::ViewTable>* viewTables = nullptr;
+    std::vector<std::array<double, 3>> guards;
+    bool complete = false;
+  };
+  [[nodiscard]] FastPathView fastPathView() const;
 
   struct State;  // per-frame buffers and tables (private)
 
