@@ -452,7 +452,7 @@ void printSize(const json& r) {
               s["airlight_first_frame"]["view_table_build_ms"].get<double>());
   if (s["airlight_glsl"]["available"].get<bool>()) {
     printStage("airlight GLSL, full: total", s["airlight_glsl"]["total"]);
-    printStage("  of which draw (GPU timer)", s["airlight_glsl"]["draw"]);
+    printStage("  of which draw (to glFinish)", s["airlight_glsl"]["draw"]);
     printStage("  of which distance upload", s["airlight_glsl"]["distance_upload"]);
     printStage("  of which readback", s["airlight_glsl"]["readback"]);
     printError("  GLSL vs CPU image, full", s["airlight_glsl"]["vs_cpu_full"]);

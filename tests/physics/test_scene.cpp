@@ -98,6 +98,8 @@ TEST(SceneFile, ParsesEveryKeyIntoItsField) {
   ASSERT_NE(iso, nullptr);
   EXPECT_DOUBLE_EQ(iso->intensity_cd, 500.0);
 
+  EXPECT_EQ(s.lamps[0].mount, LampMount::World);  // the default
+  EXPECT_EQ(s.lamps[1].mount, LampMount::Vehicle);
   const Lamp& torch = s.lamps[1].lamp;
   expectMatNear(torch.worldFromLamp, worldFromYawPitchRoll(radians(180.0), 0.0, radians(30.0)));
   expectVecNear(torch.color, Vec3(1.0));
@@ -273,7 +275,7 @@ TEST(SceneFile, EveryKeyIsDocumented) {
   for (const char* key :
        {"extinction_per_m", "visibility_m", "albedo", "phase", "g", "droplet_diameter_um", "ambient_cd_m2",
         "position_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_x_deg", "width", "height", "name", "profile",
-        "intensity_cd", "inner_deg", "outer_deg", "scale", "color", "point_m", "normal", "reflectance", "gltf"}) {
+        "intensity_cd", "inner_deg", "outer_deg", "scale", "color", "mount", "point_m", "normal", "reflectance", "gltf"}) {
     EXPECT_PRED2(Contains, doc.value(), "`" + std::string(key) + "`");
   }
 }
@@ -428,6 +430,10 @@ TEST(SceneFileErrors, ValuesOutOfRange) {
   EXPECT_PRED2(Contains,
                errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\ncolor = [1, -0.5, 1]\n"),
                "bad.toml:9: [[lamp]] #1 color[1]: expected a number >= 0, found -0.5");
+  EXPECT_PRED2(Contains,
+               errorOf(kFogAndCamera + "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\n"
+                                       "intensity_cd = 5\nmount = \"car\"\n"),
+               "bad.toml:11: [[lamp]] #1 mount: expected \"world\" or \"vehicle\", found \"car\"");
   EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 0]\n"),
                "bad.toml:9: [[plane]] #1 normal: expected a non-zero vector");
   EXPECT_PRED2(Contains,

@@ -28,7 +28,8 @@ namespace fogbeam {
 /// Timings of the latest GlAirlightPass::render(), milliseconds.
 struct GlAirlightStats {
   double upload_ms = 0.0;    ///< distance texture (every frame) and tables (when they changed)
-  double draw_ms = 0.0;      ///< GPU time of the full-screen draw (GL_TIME_ELAPSED, else CPU wall time)
+  double draw_ms = 0.0;      ///< wall time of the full-screen draw up to glFinish()
+  double gpu_timer_ms = 0.0; ///< GL_TIME_ELAPSED of the draw where supported (see airlight_pass.cpp)
   double readback_ms = 0.0;  ///< glReadPixels of the RGBA32F result and the row flip
   double table_upload_ms = 0.0;  ///< part of upload_ms spent on tables
 };
