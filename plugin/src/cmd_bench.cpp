@@ -14,6 +14,7 @@
 #include <fogbeam/gl/surface_pass.hpp>
 
 #include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/raymarch.hpp>
 #include <fogbeam/render/surface.hpp>
@@ -258,6 +259,58 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   }
   const std::size_t fullEvaluated = full.evaluated;
 
+  // The SIMD kernels on every compiled target against the scalar definition (double
+  // arithmetic, one pixel at a time): isotropic lamps and the vehicle lamps' frustum tables on
+  // the frame's first 65 536 pixels, one thread.
+  json simd = json::array();
+  {
+    const auto view = ev.accurate.fastPathView();
+    const std::size_t n = std::min<std::size_t>(nPixels, 65536), padded = kernels::paddedSize(n);
+    std::vector<float> bx(padded, 0.5f), by(padded, 0.5f), bd(padded, 1.0f), kr(padded), kg(padded), kb(padded);
+    for (std::size_t k = 0; k < n; ++k) {
+      bx[k] = static_cast<float>(k % static_cast<std::size_t>(width)) + 0.5f;
+      by[k] = static_cast<float>(k / static_cast<std::size_t>(width)) + 0.5f;
+      bd[k] = surface.distance[k];
+    }
+    const kernels::PixelBatch px{bx.data(), by.data(), bd.data(), n};
+    const kernels::PixelGeometry geo{static_cast<float>(0.5 * width), static_cast<float>(0.5 * height),
+                                     static_cast<float>(1.0 / cam.focalLengthPixels())};
+    auto runOnce = [&](bool scalar) {
+      std::fill(kr.begin(), kr.end(), 0.0f);
+      std::fill(kg.begin(), kg.end(), 0.0f);
+      std::fill(kb.begin(), kb.end(), 0.0f);
+      const auto t0 = Clock::now();
+      if (view.isoTable && !view.isoLamps->empty()) {
+        if (scalar)
+          kernels::accumulateIsoLampsScalar(*view.isoTable, view.isoLamps->data(), view.isoLamps->size(), geo, px,
+                                            kr.data(), kg.data(), kb.data());
+        else
+          kernels::accumulateIsoLamps(*view.isoTable, view.isoLamps->data(), view.isoLamps->size(), geo, px, kr.data(),
+                                      kg.data(), kb.data());
+      }
+      for (const auto& t : *view.viewTables) {
+        if (t.data.empty() || t.outerR2 < 1e30f) continue;  // frustum tables; insets cover a few pixels
+        if (scalar)
+          kernels::accumulateViewTableScalar(t, geo, px, kr.data(), kg.data(), kb.data());
+        else
+          kernels::accumulateViewTable(t, geo, px, kr.data(), kg.data(), kb.data());
+      }
+      return msSince(t0);
+    };
+    StageStats scalarStats;
+    for (int f = 0; f < 3; ++f) scalarStats.ms.push_back(runOnce(true));
+    const double scalarNs = 1e6 * scalarStats.median() / static_cast<double>(n);
+    simd.push_back({{"target", "scalar (double, reference)"}, {"ns_per_pixel", scalarNs}, {"speedup", 1.0}});
+    for (const std::string& t : kernels::availableTargets()) {
+      kernels::forceTarget(t);
+      StageStats st;
+      for (int f = 0; f < 5; ++f) st.ms.push_back(runOnce(false));
+      const double ns = 1e6 * st.median() / static_cast<double>(n);
+      simd.push_back({{"target", t}, {"ns_per_pixel", ns}, {"speedup", scalarNs / ns}});
+    }
+    kernels::forceTarget("");
+  }
+
   // The same per-pixel table formula as a GLSL full-screen shader (GlAirlightPass), on the
   // same frame and tables: draw (GPU timer), distance upload and readback, and its difference
   // from the CPU image outside the per-ray discs at the vehicle lamps' images.
@@ -319,6 +372,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   stages["airlight_full"]["evaluated_pixels"] = fullEvaluated;
   stages["airlight_first_frame"] = {{"ms", warmMs}, {"view_table_build_ms", tableMs}};
   stages["airlight_glsl"] = glAirlight;
+  stages["airlight_kernels_by_target"] = simd;
   stages["composite"] = compStats.toJson();
   r["stages"] = stages;
   r["pipeline_subsampled_ms"] = pipelineMs;
@@ -459,6 +513,11 @@ void printSize(const json& r) {
   } else {
     std::printf("  %-30s %s\n", "airlight GLSL", s["airlight_glsl"]["note"].get<std::string>().c_str());
   }
+  std::printf("  %-30s", "kernels, 1 thread (ns/px)");
+  for (const json& t : s["airlight_kernels_by_target"])
+    std::printf(" %s %.1f (%.1fx);", t["target"].get<std::string>().c_str(), t["ns_per_pixel"].get<double>(),
+                t["speedup"].get<double>());
+  std::printf("\n");
   printStage("composite", s["composite"]);
   std::printf("  %-30s %9.2f ms  = %.1f frames/s (%s + airlight subsampled + composite)\n", "pipeline, subsampled",
               r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>(),
