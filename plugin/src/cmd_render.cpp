@@ -109,9 +109,12 @@ int run(const RenderOptions& o) {
               scene->lamps.size(), o.method.c_str());
   std::printf("  surface pass                %8.1f ms  (%s)\n", surfaceMs, surfaceName.c_str());
   std::printf("  airlight tables             %8.1f ms\n", buildMs);
+  std::printf("  airlight view tables        %8.1f ms  (vehicle-mounted lamps; reused while the rig and fog stay)\n",
+              1e3 * airlight.table_seconds);
   std::printf("  airlight                    %8.1f ms  (%zu of %zu pixels evaluated, %.1f %%%s)\n",
-              1e3 * airlight.seconds, airlight.evaluated, n,
+              1e3 * (airlight.seconds - airlight.table_seconds), airlight.evaluated, n,
               100.0 * static_cast<double>(airlight.evaluated) / static_cast<double>(n), o.full ? ", --full" : "");
+  std::printf("  airlight paths              %s\n", evaluator->describe().c_str());
   std::printf("  wrote %s%s%s (PNG exposure %+.1f EV)\n", o.out.c_str(), o.png.empty() ? "" : " and ", o.png.c_str(),
               o.exposure);
   return 0;
