@@ -1,0 +1,251 @@
+// fogbeam — UdpReceiver (fogbeam/ipc/udp_receiver.hpp).
+#include <fogbeam/ipc/udp_receiver.hpp>
+
+#include <spdlog/spdlog.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+namespace fogbeam::ipc {
+
+std::uint64_t UdpStats::droppedTotal() const noexcept {
+  std::uint64_t n = 0;
+  for (std::uint64_t d : dropped) n += d;
+  return n;
+}
+
+namespace {
+
+constexpr std::size_t kMaxSenders = 64;  // sequence trackers kept; the oldest is evicted beyond
+constexpr int kPollMs = 100;             // stop() latency bound
+
+std::string sysError(const std::string& what) { return what + ": " + std::strerror(errno); }
+
+std::string endpoint(const sockaddr_in& a) {
+  char buf[INET_ADDRSTRLEN] = {};
+  inet_ntop(AF_INET, &a.sin_addr, buf, sizeof buf);
+  return std::string(buf) + ":" + std::to_string(ntohs(a.sin_port));
+}
+
+}  // namespace
+
+struct UdpReceiver::Impl {
+  UdpReceiverOptions options;
+  StateStore* store = nullptr;
+  int fd = -1;
+  std::vector<in_addr_t> allow;  // network byte order
+  std::atomic<bool> stopping{false};
+  std::thread thread;
+
+  mutable std::mutex statsMutex;
+  UdpStats stats;
+
+  // Per sender (address, port) and message type: the newest sequence number applied.
+  struct Tracker {
+    std::array<bool, 6> seen{};
+    std::array<std::uint32_t, 6> last{};
+    std::uint64_t lastUse = 0;
+  };
+  std::map<std::uint64_t, Tracker> trackers;
+  std::uint64_t useCounter = 0;
+
+  // Rate-limited log: per reason, the time of the last line and the drops since.
+  std::array<Clock::time_point, kDropReasonCount> lastLog{};
+  std::array<std::uint64_t, kDropReasonCount> sinceLog{};
+
+  ~Impl() {
+    if (fd >= 0) ::close(fd);
+  }
+
+  void drop(DropReason r, std::string_view field, const sockaddr_in& from) {
+    const auto i = static_cast<std::size_t>(r);
+    {
+      std::lock_guard<std::mutex> lock(statsMutex);
+      ++stats.dropped[i];
+    }
+    ++sinceLog[i];
+    const auto now = Clock::now();
+    if (now - lastLog[i] >= std::chrono::seconds(1)) {
+      spdlog::warn("udp: dropped {} datagram(s) for {} (last from {}, field '{}')", sinceLog[i], toString(r),
+                   endpoint(from), field);
+      lastLog[i] = now;
+      sinceLog[i] = 0;
+    }
+  }
+
+  // Classifies the sequence number; returns false (and counts) when the datagram is dropped.
+  bool acceptSequence(const sockaddr_in& from, const Header& h) {
+    const std::uint64_t key = (static_cast<std::uint64_t>(from.sin_addr.s_addr) << 16) | from.sin_port;
+    auto it = trackers.find(key);
+    if (it == trackers.end()) {
+      if (trackers.size() >= kMaxSenders) {
+        auto oldest = std::min_element(trackers.begin(), trackers.end(),
+                                       [](const auto& a, const auto& b) { return a.second.lastUse < b.second.lastUse; });
+        trackers.erase(oldest);
+      }
+      it = trackers.emplace(key, Tracker{}).first;
+    }
+    Tracker& t = it->second;
+    t.lastUse = ++useCounter;
+    const auto type = static_cast<std::size_t>(h.type);
+    if (t.seen[type]) {
+      const std::int64_t d = sequenceDistance(h.sequence, t.last[type]);
+      if (d == 0) {
+        drop(DropReason::Duplicate, "sequence", from);
+        return false;
+      }
+      if (d < 0) {
+        if (-d <= static_cast<std::int64_t>(options.restart_window)) {
+          drop(DropReason::OutOfOrder, "sequence", from);
+          return false;
+        }
+        std::lock_guard<std::mutex> lock(statsMutex);
+        ++stats.restarts;
+        spdlog::info("udp: sender {} restarted (sequence {} after {})", endpoint(from), h.sequence, t.last[type]);
+      }
+    }
+    t.seen[type] = true;
+    t.last[type] = h.sequence;
+    return true;
+  }
+
+  void apply(const Message& m, const sockaddr_in& from, Clock::time_point now) {
+    Stamp s;
+    s.valid = true;
+    s.sim_time_s = m.header.sim_time_s;
+    s.sequence = m.header.sequence;
+    s.received = now;
+    s.source = "udp " + endpoint(from);
+    std::size_t refused = 0;
+    std::visit(
+        [&](const auto& p) {
+          using T = std::decay_t<decltype(p)>;
+          if constexpr (std::is_same_v<T, EgoState>) store->setEgo(p, s);
+          else if constexpr (std::is_same_v<T, LampState>) store->setLamps(p, s);
+          else if constexpr (std::is_same_v<T, Environment>) store->setEnvironment(p, s);
+          else if constexpr (std::is_same_v<T, FrameRequest>) store->setFrameRequest(p, s);
+          else if constexpr (std::is_same_v<T, TrafficList>) refused = store->applyTraffic(p, s);
+        },
+        m.payload);
+    std::lock_guard<std::mutex> lock(statsMutex);
+    ++stats.applied;
+    ++stats.applied_by_type[static_cast<std::size_t>(m.header.type)];
+    if (refused > 0) {
+      stats.traffic_refused += refused;
+      ++stats.dropped[static_cast<std::size_t>(DropReason::TooManyObjects)];
+    }
+  }
+
+  void run() {
+    std::vector<std::uint8_t> buf(kMaxDatagram + 1);  // one more: an oversized datagram is detectable
+    while (!stopping.load(std::memory_order_relaxed)) {
+      pollfd p{fd, POLLIN, 0};
+      const int ready = ::poll(&p, 1, kPollMs);
+      if (ready <= 0) {
+        if (store) store->expire(Clock::now());
+        continue;
+      }
+      for (;;) {
+        sockaddr_in from{};
+        socklen_t len = sizeof from;
+        const ssize_t n = ::recvfrom(fd, buf.data(), buf.size(), MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&from), &len);
+        if (n < 0) break;  // EAGAIN: drained (other errors: poll again)
+        const auto now = Clock::now();
+        {
+          std::lock_guard<std::mutex> lock(statsMutex);
+          ++stats.datagrams;
+        }
+        if (!allow.empty() && std::find(allow.begin(), allow.end(), from.sin_addr.s_addr) == allow.end()) {
+          drop(DropReason::SenderNotAllowed, "source", from);
+          continue;
+        }
+        const std::size_t size = std::min(static_cast<std::size_t>(n), kMaxDatagram + 1);
+        const DecodeResult d = decode(std::span<const std::uint8_t>(buf.data(), size));
+        if (!d.ok) {
+          drop(d.reason, d.field, from);
+          continue;
+        }
+        if (!acceptSequence(from, d.message.header)) continue;
+        apply(d.message, from, now);
+      }
+    }
+  }
+};
+
+UdpReceiver::UdpReceiver(std::unique_ptr<Impl> impl, std::uint16_t port) : impl_(std::move(impl)), port_(port) {}
+
+UdpReceiver::~UdpReceiver() { stop(); }
+
+void UdpReceiver::stop() {
+  if (!impl_) return;
+  impl_->stopping.store(true);
+  if (impl_->thread.joinable()) impl_->thread.join();
+}
+
+UdpStats UdpReceiver::stats() const {
+  std::lock_guard<std::mutex> lock(impl_->statsMutex);
+  return impl_->stats;
+}
+
+Result<std::unique_ptr<UdpReceiver>> UdpReceiver::start(const UdpReceiverOptions& options, StateStore& store) {
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  impl->store = &store;
+  for (const std::string& a : options.allow) {
+    in_addr addr{};
+    if (inet_pton(AF_INET, a.c_str(), &addr) != 1)
+      return Error{"udp allow-list: '" + a + "' is not an IPv4 address"};
+    impl->allow.push_back(addr.s_addr);
+  }
+  sockaddr_in bindAddr{};
+  bindAddr.sin_family = AF_INET;
+  bindAddr.sin_port = htons(options.port);
+  // With a multicast group the socket binds to the group (or any) address so that it receives
+  // the group's datagrams; bind_address then only names the interface (multicast_interface).
+  const std::string bindHost = options.multicast_group.empty() ? options.bind_address : options.multicast_group;
+  if (inet_pton(AF_INET, bindHost.c_str(), &bindAddr.sin_addr) != 1)
+    return Error{"udp bind address '" + bindHost + "' is not an IPv4 address"};
+  impl->fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (impl->fd < 0) return Error{sysError("udp socket")};
+  // Several members of one multicast group may run on one machine (one process per screen):
+  // they share the port. A unicast port is exclusive, so that a second instance fails loudly
+  // instead of silently taking half of the datagrams.
+  if (!options.multicast_group.empty()) {
+    const int one = 1;
+    ::setsockopt(impl->fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  }
+  ::setsockopt(impl->fd, SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes, sizeof options.receive_buffer_bytes);
+  const std::string where = bindHost + ":" + std::to_string(options.port);
+  if (::bind(impl->fd, reinterpret_cast<const sockaddr*>(&bindAddr), sizeof bindAddr) != 0)
+    return Error{sysError("udp bind " + where)};
+  if (!options.multicast_group.empty()) {
+    ip_mreq mreq{};
+    mreq.imr_multiaddr = bindAddr.sin_addr;
+    if (inet_pton(AF_INET, options.multicast_interface.c_str(), &mreq.imr_interface) != 1)
+      return Error{"udp multicast interface '" + options.multicast_interface + "' is not an IPv4 address"};
+    if (::setsockopt(impl->fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) != 0)
+      return Error{sysError("udp join " + options.multicast_group + " on " + options.multicast_interface)};
+  }
+  sockaddr_in bound{};
+  socklen_t len = sizeof bound;
+  ::getsockname(impl->fd, reinterpret_cast<sockaddr*>(&bound), &len);
+  const std::uint16_t port = ntohs(bound.sin_port);
+  Impl* raw = impl.get();
+  raw->thread = std::thread([raw] { raw->run(); });
+  spdlog::info("udp: listening on {}:{}{}", bindHost, port,
+               options.allow.empty() ? "" : " (allow-list of " + std::to_string(options.allow.size()) + ")");
+  return std::unique_ptr<UdpReceiver>(new UdpReceiver(std::move(impl), port));
+}
+
+}  // namespace fogbeam::ipc
