@@ -1,0 +1,68 @@
+/* fogbeam host SDK: read fogbeam's frames from shared memory in any image generator.
+ * Plain C (C99), no C++ in the interface; link with libfogbeam_host (fogbeam_ipc).
+ *
+ * Usage:
+ *   fogbeam_reader* r;
+ *   if (fogbeam_attach("main", &r) != FOGBEAM_OK) { ... fogbeam_last_error() ... }
+ *   fogbeam_frame_info info;
+ *   size_t size = fogbeam_frame_bytes(r);   // width · height · bytes per pixel
+ *   void* pixels = malloc(size);
+ *   int rc = fogbeam_latest(r, pixels, size, &info);   // FOGBEAM_OK: a whole, newest frame
+ *   ...
+ *   fogbeam_detach(r);
+ *
+ * Layout of the pixels: row 0 at the top, `info.format` one of FOGBEAM_FORMAT_* (shm_layout.h):
+ * RGBA8 sRGB composite, RGBA16F linear composite (cd/m²), or RGBA16F overlay (RGB = in-scattered
+ * luminance in cd/m², A = transmittance: display = host·A + RGB).
+ * Thread-safety: one fogbeam_reader per thread; any number of readers per channel.
+ */
+#ifndef FOGBEAM_HOST_H
+#define FOGBEAM_HOST_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include <fogbeam/ipc/shm_layout.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct fogbeam_reader fogbeam_reader;
+
+enum {
+  FOGBEAM_OK = 0,
+  FOGBEAM_NO_FRAME = 1,     /* nothing published yet */
+  FOGBEAM_BUSY = 2,         /* every attempt overlapped a write: call again */
+  FOGBEAM_WRITER_GONE = 3,  /* closed, dead or restarted writer: detach and attach again */
+  FOGBEAM_ERROR = -1        /* see fogbeam_last_error() */
+};
+
+typedef struct fogbeam_frame_info {
+  uint64_t frame;            /* frame number, from 1 */
+  double sim_time_s;         /* simulation time of the state rendered */
+  double position_m[3];      /* eye position used (world, m) */
+  float yaw_deg, pitch_deg, roll_deg;
+  uint32_t lights;           /* ego light bits (docs/protocol.md) */
+  uint32_t ego_sequence, lamp_sequence, environment_sequence, traffic_count;
+  double surface_ms, airlight_ms, composite_ms, total_ms, latency_ms;
+  uint64_t frame_request;    /* lock-step request answered, 0 = free-running */
+  uint64_t publish_ns;       /* CLOCK_MONOTONIC at publish */
+  uint32_t width, height, format;
+} fogbeam_frame_info;
+
+/* Attaches to channel `name` (the service config's channel name). FOGBEAM_OK or FOGBEAM_ERROR. */
+int fogbeam_attach(const char* name, fogbeam_reader** out);
+/* Bytes a frame's pixels take (width · height · bytes per pixel). */
+size_t fogbeam_frame_bytes(const fogbeam_reader* r);
+/* Copies the newest whole frame into `dst` (at least fogbeam_frame_bytes) and fills `info`. */
+int fogbeam_latest(fogbeam_reader* r, void* dst, size_t dst_size, fogbeam_frame_info* info);
+void fogbeam_detach(fogbeam_reader* r);
+/* The calling thread's last error message (valid until the next call on that thread). */
+const char* fogbeam_last_error(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* FOGBEAM_HOST_H */

@@ -1,0 +1,85 @@
+// fogbeam — the C host SDK (fogbeam/fogbeam_host.h) over ShmReader.
+#include <fogbeam/fogbeam_host.h>
+#include <fogbeam/ipc/shm_channel.hpp>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+struct fogbeam_reader {
+  std::unique_ptr<fogbeam::ipc::ShmReader> reader;
+  std::vector<std::byte> pixels;
+};
+
+namespace {
+thread_local std::string lastError;
+}
+
+extern "C" {
+
+int fogbeam_attach(const char* name, fogbeam_reader** out) {
+  if (!name || !out) {
+    lastError = "fogbeam_attach: null argument";
+    return FOGBEAM_ERROR;
+  }
+  auto r = fogbeam::ipc::ShmReader::attach(name);
+  if (!r) {
+    lastError = r.error().message;
+    return FOGBEAM_ERROR;
+  }
+  *out = new fogbeam_reader{std::move(r).value(), {}};
+  return FOGBEAM_OK;
+}
+
+size_t fogbeam_frame_bytes(const fogbeam_reader* r) {
+  if (!r) return 0;
+  return std::size_t{r->reader->width()} * r->reader->height() * fogbeam::ipc::bytesPerPixel(r->reader->format());
+}
+
+int fogbeam_latest(fogbeam_reader* r, void* dst, size_t dst_size, fogbeam_frame_info* info) {
+  if (!r || !dst || !info) {
+    lastError = "fogbeam_latest: null argument";
+    return FOGBEAM_ERROR;
+  }
+  if (dst_size < fogbeam_frame_bytes(r)) {
+    lastError = "fogbeam_latest: buffer of " + std::to_string(dst_size) + " bytes, a frame needs " +
+                std::to_string(fogbeam_frame_bytes(r));
+    return FOGBEAM_ERROR;
+  }
+  fogbeam::ipc::FrameMeta m;
+  switch (r->reader->latest(m, r->pixels)) {
+    case fogbeam::ipc::ReadStatus::Ok: break;
+    case fogbeam::ipc::ReadStatus::NoFrame: return FOGBEAM_NO_FRAME;
+    case fogbeam::ipc::ReadStatus::Busy: return FOGBEAM_BUSY;
+    case fogbeam::ipc::ReadStatus::WriterGone: return FOGBEAM_WRITER_GONE;
+  }
+  std::memcpy(dst, r->pixels.data(), r->pixels.size());
+  info->frame = m.frame;
+  info->sim_time_s = m.sim_time_s;
+  for (int k = 0; k < 3; ++k) info->position_m[k] = m.position_m[static_cast<std::size_t>(k)];
+  info->yaw_deg = m.yaw_deg;
+  info->pitch_deg = m.pitch_deg;
+  info->roll_deg = m.roll_deg;
+  info->lights = m.lights;
+  info->ego_sequence = m.ego_sequence;
+  info->lamp_sequence = m.lamp_sequence;
+  info->environment_sequence = m.environment_sequence;
+  info->traffic_count = m.traffic_count;
+  info->surface_ms = m.surface_ms;
+  info->airlight_ms = m.airlight_ms;
+  info->composite_ms = m.composite_ms;
+  info->total_ms = m.total_ms;
+  info->latency_ms = m.latency_ms;
+  info->frame_request = m.frame_request;
+  info->publish_ns = m.publish_ns;
+  info->width = r->reader->width();
+  info->height = r->reader->height();
+  info->format = r->reader->format();
+  return FOGBEAM_OK;
+}
+
+void fogbeam_detach(fogbeam_reader* r) { delete r; }
+
+const char* fogbeam_last_error(void) { return lastError.c_str(); }
+
+}  // extern "C"
