@@ -1,0 +1,91 @@
+// Pixel packing for the shared-memory channels: binary16 conversion against known encodings
+// and all 65 536 halves, the SIMD packer against the scalar definition on every target, and
+// the RGBA8 table against toneMapSrgb8.
+#include <fogbeam/render/airlight_kernels.hpp>
+#include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/pixel_pack.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+namespace fogbeam {
+namespace {
+
+TEST(PixelPack, HalfEncodingsAreIeee) {
+  EXPECT_EQ(floatToHalf(1.0f), 0x3C00);
+  EXPECT_EQ(floatToHalf(-2.0f), 0xC000);
+  EXPECT_EQ(floatToHalf(0.0f), 0x0000);
+  EXPECT_EQ(floatToHalf(-0.0f), 0x8000);
+  EXPECT_EQ(floatToHalf(65504.0f), 0x7BFF);   // largest finite half
+  EXPECT_EQ(floatToHalf(65520.0f), 0x7C00);   // rounds to infinity
+  EXPECT_EQ(floatToHalf(std::ldexp(1.0f, -24)), 0x0001);  // smallest subnormal
+  EXPECT_EQ(floatToHalf(std::ldexp(1.0f, -25)), 0x0000);  // half of it: ties to even (0)
+  EXPECT_EQ(floatToHalf(0.1f), 0x2E66);
+  EXPECT_EQ(floatToHalf(std::numeric_limits<float>::infinity()), 0x7C00);
+  EXPECT_EQ(floatToHalf(std::nanf("")) & 0x7C00, 0x7C00);
+  EXPECT_NE(floatToHalf(std::nanf("")) & 0x03FF, 0);
+  EXPECT_EQ(floatToHalf(1.0f + std::ldexp(1.0f, -11)), 0x3C00);  // tie → even
+  EXPECT_EQ(floatToHalf(1.0f + 3 * std::ldexp(1.0f, -11)), 0x3C02);  // tie → even (up)
+}
+
+TEST(PixelPack, EveryHalfRoundTrips) {
+  for (std::uint32_t h = 0; h < 65536; ++h) {
+    const auto v = static_cast<std::uint16_t>(h);
+    const float f = halfToFloat(v);
+    if (std::isnan(f)) continue;
+    ASSERT_EQ(floatToHalf(f), v) << "half 0x" << std::hex << h;
+  }
+}
+
+TEST(PixelPack, SimdPackerMatchesScalarOnEveryTarget) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-12.0f, 12.0f);
+  const std::size_t n = 1027;
+  std::vector<float> rgb(3 * n), alpha(n);
+  for (float& v : rgb) v = std::exp2(u(rng)) * (u(rng) < 0 ? -1.0f : 1.0f);
+  for (float& v : alpha) v = std::exp2(u(rng) / 4.0f) - 1.0f;
+  rgb[0] = std::numeric_limits<float>::infinity();
+  rgb[4] = 1e-7f;  // a subnormal half
+  rgb[8] = 70000.0f;
+  std::vector<std::uint16_t> want(4 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t c = 0; c < 3; ++c) want[4 * i + c] = floatToHalf(rgb[3 * i + c]);
+    want[4 * i + 3] = floatToHalf(alpha[i]);
+  }
+  for (const std::string& t : kernels::availableTargets()) {
+    ASSERT_TRUE(kernels::forceTarget(t));
+    std::vector<std::uint16_t> got(4 * n, 0xFFFF);
+    packRgba16F(rgb.data(), alpha.data(), 1.0f, n, got.data());
+    EXPECT_EQ(got, want) << "target " << t;
+  }
+  kernels::forceTarget("");
+  std::vector<std::uint16_t> constant(4 * n);
+  packRgba16F(rgb.data(), nullptr, 1.0f, n, constant.data());
+  EXPECT_EQ(constant[3], 0x3C00);
+  EXPECT_EQ(constant[4 * (n - 1) + 3], 0x3C00);
+}
+
+TEST(PixelPack, Rgba8MatchesToneMapWithinOneCode) {
+  std::vector<float> rgb;
+  for (int k = -200; k <= 200; ++k) rgb.push_back(std::exp2(static_cast<float>(k) / 20.0f));
+  rgb.push_back(0.0f);
+  rgb.push_back(0.0f);
+  while (rgb.size() % 3) rgb.push_back(1.0f);
+  for (double ev : {-4.0, 0.0, 1.0}) {
+    const auto ref = toneMapSrgb8(rgb, ev);
+    std::vector<std::uint8_t> got(rgb.size() / 3 * 4);
+    packRgba8Srgb(rgb.data(), rgb.size() / 3, ev, got.data());
+    for (std::size_t i = 0; i < rgb.size() / 3; ++i) {
+      for (std::size_t c = 0; c < 3; ++c)
+        EXPECT_NEAR(got[4 * i + c], ref[3 * i + c], 1) << "value " << rgb[3 * i + c] << " EV " << ev;
+      EXPECT_EQ(got[4 * i + 3], 255);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace fogbeam
