@@ -11,6 +11,11 @@ struct fogbeam_reader {
   std::vector<std::byte> pixels;
 };
 
+struct fogbeam_depth_writer {
+  std::unique_ptr<fogbeam::ipc::ShmWriter> writer;
+  std::size_t pixels = 0;
+};
+
 namespace {
 thread_local std::string lastError;
 }
@@ -79,6 +84,45 @@ int fogbeam_latest(fogbeam_reader* r, void* dst, size_t dst_size, fogbeam_frame_
 }
 
 void fogbeam_detach(fogbeam_reader* r) { delete r; }
+
+int fogbeam_depth_create(const char* name, uint32_t width, uint32_t height, fogbeam_depth_writer** out) {
+  if (!name || !out) {
+    lastError = "fogbeam_depth_create: null argument";
+    return FOGBEAM_ERROR;
+  }
+  fogbeam::ipc::ShmChannelOptions o;
+  o.channel = name;
+  o.width = width;
+  o.height = height;
+  o.format = FOGBEAM_FORMAT_DISTANCE_F32;
+  auto w = fogbeam::ipc::ShmWriter::create(o);
+  if (!w) {
+    lastError = w.error().message;
+    return FOGBEAM_ERROR;
+  }
+  *out = new fogbeam_depth_writer{std::move(w).value(), std::size_t{width} * height};
+  return FOGBEAM_OK;
+}
+
+int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, const fogbeam_camera* camera) {
+  if (!w || !distance_m || !camera) {
+    lastError = "fogbeam_depth_publish: null argument";
+    return FOGBEAM_ERROR;
+  }
+  fogbeam::ipc::FrameMeta m;
+  m.frame = camera->frame;
+  m.sim_time_s = camera->sim_time_s;
+  for (std::size_t k = 0; k < 3; ++k) m.position_m[k] = camera->position_m[k];
+  m.yaw_deg = camera->yaw_deg;
+  m.pitch_deg = camera->pitch_deg;
+  m.roll_deg = camera->roll_deg;
+  m.fov_x_deg = camera->fov_x_deg;
+  m.fov_y_deg = camera->fov_y_deg;
+  w->writer->publish(m, std::as_bytes(std::span<const float>(distance_m, w->pixels)));
+  return FOGBEAM_OK;
+}
+
+void fogbeam_depth_destroy(fogbeam_depth_writer* w) { delete w; }
 
 const char* fogbeam_last_error(void) { return lastError.c_str(); }
 

@@ -80,6 +80,8 @@ void writeMeta(std::byte* slot, const FrameMeta& m) {
   put(slot, FOGBEAM_SLOT_LATENCY_MS, m.latency_ms);
   put(slot, FOGBEAM_SLOT_PUBLISH_NS, m.publish_ns);
   put(slot, FOGBEAM_SLOT_FRAME_REQUEST, m.frame_request);
+  put(slot, FOGBEAM_SLOT_FOV_X, m.fov_x_deg);
+  put(slot, FOGBEAM_SLOT_FOV_Y, m.fov_y_deg);
 }
 
 FrameMeta readMeta(const std::byte* slot) {
@@ -102,6 +104,8 @@ FrameMeta readMeta(const std::byte* slot) {
   m.latency_ms = get<double>(slot, FOGBEAM_SLOT_LATENCY_MS);
   m.publish_ns = get<std::uint64_t>(slot, FOGBEAM_SLOT_PUBLISH_NS);
   m.frame_request = get<std::uint64_t>(slot, FOGBEAM_SLOT_FRAME_REQUEST);
+  m.fov_x_deg = get<float>(slot, FOGBEAM_SLOT_FOV_X);
+  m.fov_y_deg = get<float>(slot, FOGBEAM_SLOT_FOV_Y);
   return m;
 }
 
@@ -114,7 +118,8 @@ bool processAlive(std::uint32_t pid) {
 
 std::uint32_t bytesPerPixel(std::uint32_t format) noexcept {
   switch (format) {
-    case FOGBEAM_FORMAT_RGBA8_SRGB: return 4;
+    case FOGBEAM_FORMAT_RGBA8_SRGB:
+    case FOGBEAM_FORMAT_DISTANCE_F32: return 4;
     case FOGBEAM_FORMAT_RGBA16F_LINEAR:
     case FOGBEAM_FORMAT_RGBA16F_OVERLAY: return 8;
     default: return 0;

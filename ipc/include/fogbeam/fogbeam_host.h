@@ -51,6 +51,26 @@ typedef struct fogbeam_frame_info {
   uint32_t width, height, format;
 } fogbeam_frame_info;
 
+/* ---- Host depth input: the host publishes its own distance buffer and camera, which fogbeam
+ * uses instead of its surface pass (overlay mode on top of the host's rendering). ---- */
+typedef struct fogbeam_depth_writer fogbeam_depth_writer;
+
+typedef struct fogbeam_camera {
+  uint64_t frame;          /* the host's frame number */
+  double sim_time_s;       /* simulation time of this view */
+  double position_m[3];    /* eye (world, docs/physics.md axes: x forward, y left, z up) */
+  float yaw_deg, pitch_deg, roll_deg;  /* positive pitch = nose down */
+  float fov_x_deg;         /* horizontal field of view of a centred pinhole */
+  float fov_y_deg;         /* 0 = from width/height (square pixels) */
+} fogbeam_camera;
+
+/* Creates channel `name` (mode 0600) for width × height distances. FOGBEAM_OK or FOGBEAM_ERROR. */
+int fogbeam_depth_create(const char* name, uint32_t width, uint32_t height, fogbeam_depth_writer** out);
+/* Publishes one view: width·height floats, the distance along each pixel's ray in metres
+ * (+inf for sky), row 0 at the top. Never waits for fogbeam. */
+int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, const fogbeam_camera* camera);
+void fogbeam_depth_destroy(fogbeam_depth_writer* w);
+
 /* Attaches to channel `name` (the service config's channel name). FOGBEAM_OK or FOGBEAM_ERROR. */
 int fogbeam_attach(const char* name, fogbeam_reader** out);
 /* Bytes a frame's pixels take (width · height · bytes per pixel). */

@@ -29,7 +29,7 @@ namespace fogbeam::ipc {
 struct ShmChannelOptions {
   std::string channel;        ///< [A-Za-z0-9_.-], 1–48 characters; segment "/fogbeam.<channel>"
   std::uint32_t width = 0, height = 0;
-  std::uint32_t format = 1;   ///< FOGBEAM_FORMAT_* (shm_layout.h)
+  std::uint32_t format = 1;   ///< FOGBEAM_FORMAT_* (shm_layout.h); DISTANCE_F32 for host depth input
   bool distance = false;      ///< add an f32 distance plane per slot
   std::uint32_t slots = 3;    ///< ≥ 3
   bool group_access = false;  ///< mode 0660 instead of 0600
@@ -48,6 +48,8 @@ struct FrameMeta {
   double latency_ms = 0.0;      ///< input receive → publish
   std::uint64_t frame_request = 0;
   std::uint64_t publish_ns = 0; ///< CLOCK_MONOTONIC, set by publish()
+  float fov_x_deg = 0.0f;       ///< camera field of view (host depth input; 0 elsewhere)
+  float fov_y_deg = 0.0f;       ///< 0 = from the aspect ratio
 };
 
 /// Bytes per pixel of a FOGBEAM_FORMAT_* value (0 for an unknown one).

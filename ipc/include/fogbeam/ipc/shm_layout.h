@@ -26,6 +26,7 @@
 #define FOGBEAM_FORMAT_RGBA8_SRGB 1u          /* composite, tone-mapped, 8-bit sRGB, A = 255 */
 #define FOGBEAM_FORMAT_RGBA16F_LINEAR 2u      /* composite, linear cd/m², A = 1 */
 #define FOGBEAM_FORMAT_RGBA16F_OVERLAY 3u     /* RGB in-scattered luminance (cd/m²), A transmittance: host·A + RGB */
+#define FOGBEAM_FORMAT_DISTANCE_F32 4u        /* host depth input: f32 distance along each pixel's ray (m, +inf sky) */
 
 /* Writer states (header.writer_state). */
 #define FOGBEAM_WRITER_RUNNING 1u
@@ -71,5 +72,7 @@
 #define FOGBEAM_SLOT_LATENCY_MS 112     /* f64: input receive → publish */
 #define FOGBEAM_SLOT_PUBLISH_NS 120     /* u64: CLOCK_MONOTONIC at publish */
 #define FOGBEAM_SLOT_FRAME_REQUEST 128  /* u64: lock-step frame request answered (0 = free-running) */
+#define FOGBEAM_SLOT_FOV_X 136          /* f32 deg: horizontal field of view of the centred pinhole */
+#define FOGBEAM_SLOT_FOV_Y 140          /* f32 deg: vertical field of view; 0 = from width/height (square pixels) */
 
 #endif /* FOGBEAM_SHM_LAYOUT_H */
