@@ -37,6 +37,10 @@ void StateStore::setFrameRequest(const FrameRequest& v, const Stamp& s) {
   update([&](SimSnapshot& n) { n.frame_request = {v, s}; });
 }
 
+void StateStore::setVehicleSpeed(float speed_m_s, const Stamp& s) {
+  update([&](SimSnapshot& n) { n.vehicle_speed_m_s = {speed_m_s, s}; });
+}
+
 std::size_t StateStore::applyTraffic(const TrafficList& list, const Stamp& s) {
   std::size_t refused = 0;
   update([&](SimSnapshot& n) {

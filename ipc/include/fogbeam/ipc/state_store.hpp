@@ -56,6 +56,7 @@ struct SimSnapshot {
   Stamped<LampState> lamps;
   Stamped<Environment> environment;
   Stamped<FrameRequest> frame_request;
+  Stamped<float> vehicle_speed_m_s;   ///< from the vehicle bus (CAN), beside ego.value.speed_m_s
   std::vector<TrafficEntry> traffic;  ///< sorted by object id
   double traffic_timeout_s = 1.0;
 
@@ -82,6 +83,7 @@ class StateStore {
   void setLamps(const LampState& v, const Stamp& s);
   void setEnvironment(const Environment& v, const Stamp& s);
   void setFrameRequest(const FrameRequest& v, const Stamp& s);
+  void setVehicleSpeed(float speed_m_s, const Stamp& s);
   /// Applies a traffic list: adds/updates objects, removes flagged ones and, for a complete
   /// list, every other object. Returns how many objects were refused because the store is
   /// full (the rest of the list is applied).

@@ -1,0 +1,119 @@
+// fogbeam — the CAN input: vehicle-bus frames → the ego vehicle's lamp state and speed, through a
+// DBC mapping. One decoder (CanDecoder) serves every source, so the path tested from candump logs
+// and the cannelloni UDP tunnel here is the path a SocketCAN bus takes in a cab:
+//
+//   SocketCAN (CAN_RAW, kernel filters for the mapped ids, classic and FD frames)
+//   cannelloni over UDP (a CAN-to-Ethernet gateway, or `cannelloni` on another machine)
+//   candump -L log files, replayed at recorded speed or as fast as possible
+//
+// Lamp signals are read as booleans (physical value ≠ 0 = on). A lamp signal that has not been
+// seen for `hold_s` keeps its last value until then and then falls back to the configured
+// default (off unless set in `fallback_lights`); the transition to and from "silent" is logged.
+//
+// Thread-safety: a CanDecoder is used by one thread (its source's); sources are started and
+// stopped from one thread.
+#pragma once
+
+#include <fogbeam/ipc/can_frame.hpp>
+#include <fogbeam/ipc/candump.hpp>
+#include <fogbeam/ipc/dbc.hpp>
+#include <fogbeam/ipc/state_store.hpp>
+#include <fogbeam/util/result.hpp>
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace fogbeam::ipc {
+
+/// A DBC message and signal, by name.
+struct CanSignalRef {
+  std::string message;
+  std::string signal;
+};
+
+/// Lamp functions the CAN input can drive, in light:: bit order of `kCanLampBits`.
+enum class CanLamp : std::uint8_t { LowBeam, HighBeam, FrontFog, RearFog, IndicatorLeft, IndicatorRight, Count_ };
+inline constexpr std::size_t kCanLampCount = static_cast<std::size_t>(CanLamp::Count_);
+inline constexpr std::array<std::uint32_t, kCanLampCount> kCanLampBits{
+    light::kLowBeam, light::kHighBeam, light::kFrontFog, light::kRearFog, light::kIndicatorLeft, light::kIndicatorRight};
+
+struct CanMapping {
+  std::array<std::optional<CanSignalRef>, kCanLampCount> lamps;  ///< by CanLamp
+  std::optional<CanSignalRef> speed;
+  double speed_to_m_s = 1.0;       ///< multiplies the speed signal's physical value (1/3.6 for km/h)
+  double hold_s = 0.5;             ///< a silent lamp signal keeps its value this long (s)
+  std::uint32_t fallback_lights = 0;  ///< light:: bits for silent signals (default: off)
+};
+
+struct CanStats {
+  std::uint64_t frames = 0;        ///< frames offered to the decoder
+  std::uint64_t matched = 0;       ///< frames of a mapped message
+  std::uint64_t out_of_range = 0;  ///< mapped signals outside their DBC [min, max] (ignored)
+  std::uint64_t fallbacks = 0;     ///< lamp signals that went silent and fell back
+  std::uint64_t published = 0;     ///< state-store updates
+};
+
+class CanDecoder {
+ public:
+  /// Resolves every mapped signal in `dbc`; errors name the missing message or signal and what
+  /// the DBC has.
+  [[nodiscard]] static Result<CanDecoder> create(const DbcDatabase& dbc, const CanMapping& mapping);
+
+  /// Decodes one frame received at `now`; true when it carried a mapped signal.
+  bool onFrame(const CanFrame& frame, Clock::time_point now);
+  /// Publishes the lamp state (held values, fallbacks for silent signals) and the speed to the
+  /// store when they changed or every call with `force`; `source` goes into the stamps.
+  void publish(StateStore& store, Clock::time_point now, const std::string& source, bool force = false);
+
+  /// The CAN ids (and extended flags) the mapping needs: for kernel filters.
+  [[nodiscard]] std::vector<std::pair<std::uint32_t, bool>> ids() const;
+  [[nodiscard]] const CanStats& stats() const noexcept { return stats_; }
+  /// The lamp bits as of `now` (for tests and status).
+  [[nodiscard]] std::uint32_t lights(Clock::time_point now) const;
+
+ private:
+  struct Bound {
+    const DbcMessage* message = nullptr;
+    DbcSignal signal;
+    bool present = false;
+    double value = 0.0;
+    Clock::time_point seen{};
+    bool silentLogged = false;
+  };
+  CanMapping mapping_;
+  std::vector<DbcMessage> messages_;  // copies of the mapped messages (ids)
+  std::array<Bound, kCanLampCount> lamps_{};
+  Bound speed_{};
+  CanStats stats_;
+  std::uint32_t lastLights_ = 0xFFFFFFFFu;
+  double lastSpeed_ = -1.0;
+  std::uint32_t sequence_ = 0;
+};
+
+/// A running CAN source feeding a StateStore through a CanDecoder. Stops on destruction.
+class CanSource {
+ public:
+  virtual ~CanSource() = default;
+  virtual void stop() = 0;
+  [[nodiscard]] virtual CanStats stats() const = 0;
+  [[nodiscard]] virtual bool finished() const = 0;  ///< a replay reached its end
+};
+
+/// SocketCAN on `interface` (e.g. "can0", "vcan0"), CAN_RAW with FD frames and kernel filters.
+/// Fails with the system's reason where AF_CAN is unavailable ("SocketCAN unavailable: …").
+[[nodiscard]] Result<std::unique_ptr<CanSource>> startSocketCan(const std::string& interface, CanDecoder decoder,
+                                                                StateStore& store);
+/// cannelloni datagrams on `bind_address:port` (0 = any free port; see port()).
+[[nodiscard]] Result<std::unique_ptr<CanSource>> startCannelloni(const std::string& bind_address, std::uint16_t port,
+                                                                 CanDecoder decoder, StateStore& store,
+                                                                 std::uint16_t* boundPort = nullptr);
+/// Replays a candump log: `speed` 1 = recorded speed, 0 = as fast as possible.
+[[nodiscard]] Result<std::unique_ptr<CanSource>> startCandumpReplay(const std::string& path, double speed,
+                                                                    CanDecoder decoder, StateStore& store);
+
+}  // namespace fogbeam::ipc

@@ -1,0 +1,324 @@
+// fogbeam — CAN input (fogbeam/ipc/can_input.hpp).
+#include <fogbeam/ipc/can_input.hpp>
+#include <fogbeam/ipc/cannelloni.hpp>
+
+#include <spdlog/spdlog.h>
+
+#include <arpa/inet.h>
+#include <net/if.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <linux/can.h>
+#include <linux/can/raw.h>
+
+#include <cerrno>
+#include <cstring>
+#include <mutex>
+#include <thread>
+
+namespace fogbeam::ipc {
+
+namespace {
+
+constexpr std::array<const char*, kCanLampCount> kLampNames{"low beam", "high beam", "front fog", "rear fog",
+                                                            "indicator left", "indicator right"};
+constexpr int kPollMs = 50;  // stop latency and the hold/fallback tick
+
+std::string sysError(const std::string& what) { return what + ": " + std::strerror(errno); }
+
+}  // namespace
+
+Result<CanDecoder> CanDecoder::create(const DbcDatabase& dbc, const CanMapping& mapping) {
+  CanDecoder d;
+  d.mapping_ = mapping;
+  auto bind = [&](const std::optional<CanSignalRef>& ref, Bound& out) -> Status {
+    if (!ref) return Ok{};
+    auto msg = dbc.message(ref->message);
+    if (!msg) return msg.error();
+    auto sig = dbc.signal(ref->message, ref->signal);
+    if (!sig) return sig.error();
+    out.message = *msg;
+    out.signal = **sig;
+    out.present = true;
+    if (std::none_of(d.messages_.begin(), d.messages_.end(), [&](const DbcMessage& m) {
+          return m.id == (*msg)->id && m.extended == (*msg)->extended;
+        }))
+      d.messages_.push_back(**msg);
+    return Ok{};
+  };
+  for (std::size_t k = 0; k < kCanLampCount; ++k)
+    if (Status s = bind(mapping.lamps[k], d.lamps_[k]); !s) return s.error();
+  if (Status s = bind(mapping.speed, d.speed_); !s) return s.error();
+  if (!d.speed_.present && std::none_of(d.lamps_.begin(), d.lamps_.end(), [](const Bound& b) { return b.present; }))
+    return Error{"CAN mapping names no signal (lamps or speed)"};
+  // The Bound entries keep signal copies; message pointers are only compared by id below.
+  for (auto& b : d.lamps_) b.message = nullptr;
+  d.speed_.message = nullptr;
+  return d;
+}
+
+std::vector<std::pair<std::uint32_t, bool>> CanDecoder::ids() const {
+  std::vector<std::pair<std::uint32_t, bool>> out;
+  for (const DbcMessage& m : messages_) out.emplace_back(m.id, m.extended);
+  return out;
+}
+
+bool CanDecoder::onFrame(const CanFrame& frame, Clock::time_point now) {
+  ++stats_.frames;
+  if (frame.remote) return false;
+  const auto it = std::find_if(messages_.begin(), messages_.end(), [&](const DbcMessage& m) {
+    return m.id == frame.id && m.extended == frame.extended;
+  });
+  if (it == messages_.end()) return false;
+  ++stats_.matched;
+  bool any = false;
+  auto take = [&](Bound& b) {
+    if (!b.present) return;
+    // Only signals of this message: a signal's name is unique within its message.
+    if (std::none_of(it->signals.begin(), it->signals.end(), [&](const DbcSignal& s) { return s.name == b.signal.name; }))
+      return;
+    const auto v = decodeSignalValue(b.signal, frame);
+    if (!v) return;  // too short, or the multiplexor selects another signal
+    if (v->out_of_range) {
+      ++stats_.out_of_range;
+      return;
+    }
+    b.value = v->physical;
+    b.seen = now;
+    any = true;
+  };
+  for (Bound& b : lamps_) take(b);
+  take(speed_);
+  return any;
+}
+
+std::uint32_t CanDecoder::lights(Clock::time_point now) const {
+  std::uint32_t bits = 0;
+  for (std::size_t k = 0; k < kCanLampCount; ++k) {
+    const Bound& b = lamps_[k];
+    if (!b.present) continue;
+    const bool fresh = b.seen != Clock::time_point{} && now - b.seen <= std::chrono::duration<double>(mapping_.hold_s);
+    const bool on = fresh ? b.value != 0.0 : (mapping_.fallback_lights & kCanLampBits[k]) != 0;
+    if (on) bits |= kCanLampBits[k];
+  }
+  return bits;
+}
+
+void CanDecoder::publish(StateStore& store, Clock::time_point now, const std::string& source, bool force) {
+  // Log each lamp signal's transition to and from "silent" once.
+  for (std::size_t k = 0; k < kCanLampCount; ++k) {
+    Bound& b = lamps_[k];
+    if (!b.present) continue;
+    const bool silent = b.seen == Clock::time_point{} || now - b.seen > std::chrono::duration<double>(mapping_.hold_s);
+    if (silent && !b.silentLogged) {
+      ++stats_.fallbacks;
+      spdlog::warn("can: {} signal {} silent for more than {} s: falling back to {}", kLampNames[k], b.signal.name,
+                   mapping_.hold_s, (mapping_.fallback_lights & kCanLampBits[k]) ? "on" : "off");
+      b.silentLogged = true;
+    } else if (!silent && b.silentLogged) {
+      spdlog::info("can: {} signal {} is back", kLampNames[k], b.signal.name);
+      b.silentLogged = false;
+    }
+  }
+  Stamp s;
+  s.valid = true;
+  s.received = now;
+  s.source = source;
+  const std::uint32_t bits = lights(now);
+  if (force || bits != lastLights_) {
+    s.sequence = ++sequence_;
+    const auto cur = store.snapshot();
+    LampState l = cur->lamps.value;
+    // The CAN mapping owns the bits it maps; others (e.g. DRL from UDP) are kept.
+    std::uint32_t owned = 0;
+    for (std::size_t k = 0; k < kCanLampCount; ++k)
+      if (lamps_[k].present) owned |= kCanLampBits[k];
+    l.lights = (l.lights & ~owned) | bits;
+    store.setLamps(l, s);
+    lastLights_ = bits;
+    ++stats_.published;
+  }
+  if (speed_.present && speed_.seen != Clock::time_point{}) {
+    const double v = speed_.value * mapping_.speed_to_m_s;
+    if (force || v != lastSpeed_) {
+      s.sequence = ++sequence_;
+      store.setVehicleSpeed(static_cast<float>(v), s);
+      lastSpeed_ = v;
+      ++stats_.published;
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+namespace {
+
+// A thread that feeds frames from `next(now)` (returns false to stop) into the decoder, and
+// publishes after every frame batch and every poll tick (for the hold/fallback timing).
+class ThreadSource final : public CanSource {
+ public:
+  ThreadSource(CanDecoder decoder, StateStore& store, std::string source)
+      : decoder_(std::move(decoder)), store_(store), source_(std::move(source)) {}
+  ~ThreadSource() override { stop(); }
+
+  template <class Loop>
+  void run(Loop loop) {
+    thread_ = std::thread([this, loop]() mutable {
+      loop(*this);
+      finished_ = true;
+    });
+  }
+  void stop() override {
+    stopping_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  [[nodiscard]] CanStats stats() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return decoder_.stats();
+  }
+  [[nodiscard]] bool finished() const override { return finished_; }
+
+  bool stopping() const { return stopping_; }
+  void frame(const CanFrame& f) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    decoder_.onFrame(f, Clock::now());
+  }
+  void tick() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    decoder_.publish(store_, Clock::now(), source_);
+  }
+
+ private:
+  CanDecoder decoder_;
+  StateStore& store_;
+  std::string source_;
+  mutable std::mutex mutex_;
+  std::thread thread_;
+  std::atomic<bool> stopping_{false}, finished_{false};
+};
+
+}  // namespace
+
+Result<std::unique_ptr<CanSource>> startSocketCan(const std::string& interface, CanDecoder decoder, StateStore& store) {
+  const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
+  if (fd < 0) return Error{sysError("SocketCAN unavailable: socket(PF_CAN, SOCK_RAW, CAN_RAW)")};
+  auto fail = [&](const std::string& what) -> Error {
+    Error e{sysError(what)};
+    ::close(fd);
+    return e;
+  };
+  if (interface.size() >= IFNAMSIZ) {
+    ::close(fd);
+    return Error{"SocketCAN interface name '" + interface + "' is too long"};
+  }
+  const int one = 1;
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &one, sizeof one) != 0) return fail("CAN_RAW_FD_FRAMES");
+  // Kernel filters: only the mapped ids reach user space.
+  std::vector<can_filter> filters;
+  for (const auto& [id, ext] : decoder.ids())
+    filters.push_back(can_filter{ext ? (id | CAN_EFF_FLAG) : id,
+                                 ext ? (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_EFF_MASK) : (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_SFF_MASK)});
+  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
+                   static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0)
+    return fail("CAN_RAW_FILTER");
+  ifreq ifr{};
+  std::strncpy(ifr.ifr_name, interface.c_str(), IFNAMSIZ - 1);
+  if (::ioctl(fd, SIOCGIFINDEX, &ifr) != 0) return fail("SocketCAN interface " + interface);
+  sockaddr_can addr{};
+  addr.can_family = AF_CAN;
+  addr.can_ifindex = ifr.ifr_ifindex;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return fail("bind " + interface);
+  auto src = std::make_unique<ThreadSource>(std::move(decoder), store, "can " + interface);
+  src->run([fd](ThreadSource& self) {
+    canfd_frame raw{};
+    while (!self.stopping()) {
+      pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, kPollMs) > 0) {
+        const ssize_t n = ::read(fd, &raw, sizeof raw);
+        if (n == CAN_MTU || n == CANFD_MTU) {
+          CanFrame f;
+          f.extended = (raw.can_id & CAN_EFF_FLAG) != 0;
+          f.remote = (raw.can_id & CAN_RTR_FLAG) != 0;
+          f.id = raw.can_id & (f.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
+          f.fd = n == CANFD_MTU;
+          f.len = std::min<std::uint8_t>(raw.len, f.fd ? 64 : 8);
+          std::memcpy(f.data.data(), raw.data, f.len);
+          if ((raw.can_id & CAN_ERR_FLAG) == 0) self.frame(f);
+        }
+      }
+      self.tick();
+    }
+    ::close(fd);
+  });
+  return std::unique_ptr<CanSource>(std::move(src));
+}
+
+Result<std::unique_ptr<CanSource>> startCannelloni(const std::string& bindAddress, std::uint16_t port, CanDecoder decoder,
+                                                   StateStore& store, std::uint16_t* boundPort) {
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(port);
+  if (inet_pton(AF_INET, bindAddress.c_str(), &a.sin_addr) != 1)
+    return Error{"cannelloni bind address '" + bindAddress + "' is not an IPv4 address"};
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return Error{sysError("cannelloni socket")};
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    Error e{sysError("cannelloni bind " + bindAddress + ":" + std::to_string(port))};
+    ::close(fd);
+    return e;
+  }
+  sockaddr_in bound{};
+  socklen_t len = sizeof bound;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&bound), &len);
+  if (boundPort) *boundPort = ntohs(bound.sin_port);
+  auto src = std::make_unique<ThreadSource>(std::move(decoder), store,
+                                            "cannelloni " + bindAddress + ":" + std::to_string(ntohs(bound.sin_port)));
+  src->run([fd](ThreadSource& self) {
+    std::vector<std::uint8_t> buf(65536);
+    std::uint64_t bad = 0;
+    auto lastLog = Clock::time_point{};
+    while (!self.stopping()) {
+      pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, kPollMs) > 0) {
+        const ssize_t n = ::recv(fd, buf.data(), buf.size(), MSG_DONTWAIT);
+        if (n > 0) {
+          auto packet = decodeCannelloni(std::span<const std::uint8_t>(buf.data(), static_cast<std::size_t>(n)));
+          if (packet) {
+            for (const CanFrame& f : packet->frames) self.frame(f);
+          } else {
+            ++bad;
+            if (Clock::now() - lastLog > std::chrono::seconds(1)) {
+              spdlog::warn("cannelloni: dropped {} bad packet(s): {}", bad, packet.error().message);
+              lastLog = Clock::now();
+              bad = 0;
+            }
+          }
+        }
+      }
+      self.tick();
+    }
+    ::close(fd);
+  });
+  return std::unique_ptr<CanSource>(std::move(src));
+}
+
+Result<std::unique_ptr<CanSource>> startCandumpReplay(const std::string& path, double speed, CanDecoder decoder,
+                                                      StateStore& store) {
+  auto lines = loadCandump(path);
+  if (!lines) return lines.error();
+  auto src = std::make_unique<ThreadSource>(std::move(decoder), store, "candump " + path);
+  src->run([lines = std::move(lines).value(), speed](ThreadSource& self) {
+    replayCandump(lines, speed, [&](const CandumpLine& l) {
+      self.frame(l.frame);
+      self.tick();
+      return !self.stopping();
+    });
+    self.tick();
+  });
+  return std::unique_ptr<CanSource>(std::move(src));
+}
+
+}  // namespace fogbeam::ipc
