@@ -327,6 +327,8 @@ ReadStatus ShmReader::latest(FrameMeta& meta, std::vector<std::byte>& pixels, st
   const std::uint64_t beat = load64(b, FOGBEAM_HDR_HEARTBEAT_NS, std::memory_order_acquire);
   const double silent_s = static_cast<double>(monotonicNs() - beat) * 1e-9;
   if (closed || silent_s > heartbeat_timeout_s) return ReadStatus::WriterGone;
+  // A writer killed outright is gone at once, not only when its heartbeat ages.
+  if (!processAlive(get<std::uint32_t>(b, FOGBEAM_HDR_WRITER_PID))) return ReadStatus::WriterGone;
   for (std::uint32_t attempt = 0; attempt < kAttempts; ++attempt) {
     const std::uint64_t latest = load64(b, FOGBEAM_HDR_LATEST, std::memory_order_acquire);
     if (latest == 0) return ReadStatus::NoFrame;

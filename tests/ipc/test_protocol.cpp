@@ -185,6 +185,18 @@ TEST(Protocol, GarbageNeverCrashesAndAcceptedMessagesAreCanonical) {
   EXPECT_GT(accepted, 0u);
 }
 
+TEST(Protocol, TruncatedAndOversizedDatagramsAreDropped) {
+  const auto ego = encode(msg(EgoState{pose(1, 2, 3, 10.0f), 5.0f}));
+  for (std::size_t n = 0; n < ego.size(); ++n) {
+    const DecodeResult d = decode(std::span<const std::uint8_t>(ego.data(), n));
+    EXPECT_FALSE(d.ok) << n;
+    EXPECT_EQ(d.reason, n < kHeaderSize ? DropReason::TooShort : DropReason::LengthMismatch) << n;
+  }
+  std::vector<std::uint8_t> huge(kMaxDatagram + 100, 0);
+  std::copy(ego.begin(), ego.end(), huge.begin());
+  EXPECT_EQ(decode(huge).reason, DropReason::LengthMismatch);
+}
+
 TEST(Protocol, SizesMatchTheDocument) {
   EXPECT_EQ(encode(msg(EgoState{})).size(), kHeaderSize + 40);
   EXPECT_EQ(encode(msg(LampState{})).size(), kHeaderSize + 12);

@@ -8,6 +8,8 @@
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <csignal>
 #include <unistd.h>
 
 #include <atomic>
@@ -90,44 +92,127 @@ TEST(ShmChannel, SegmentsAreOwnerOnlyByDefault) {
   EXPECT_EQ(st.st_mode & 0777, 0660u);
 }
 
-// The writer publishes as fast as it can, each frame filled with one byte value derived from
-// its number; the reader must never accept a frame whose bytes or metadata disagree.
-TEST(ShmChannel, NoTornFrameUnderAFastWriter) {
+// The writer publishes as fast as it can for 2 s, each frame filled with one byte value derived
+// from its number, while two readers copy frames; no reader may accept a frame whose bytes or
+// metadata disagree. (On 2 cores the three threads interleave, so overlaps do happen.)
+TEST(ShmChannel, NoTornFrameWhileAWriterAndTwoReadersHammerForTwoSeconds) {
   const std::string ch = channelName("torn");
   auto w = ShmWriter::create(opts(ch, 256, 128));
   ASSERT_TRUE(w);
-  auto r = ShmReader::attach(ch);
-  ASSERT_TRUE(r);
   std::atomic<bool> done{false};
+  std::atomic<std::uint64_t> published{0};
   std::thread writer([&] {
     std::vector<std::byte> px(256 * 128 * 8);
-    for (std::uint64_t f = 1; f <= 3000; ++f) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    for (std::uint64_t f = 1; std::chrono::steady_clock::now() < end; ++f) {
       std::fill(px.begin(), px.end(), static_cast<std::byte>(f & 0xFF));
       FrameMeta m;
       m.frame = f;
       m.sim_time_s = static_cast<double>(f);
       (*w)->publish(m, px);
+      published = f;
     }
     done = true;
   });
-  std::size_t ok = 0, bad = 0, busy = 0;
-  FrameMeta m;
-  std::vector<std::byte> px;
-  while (!done.load()) {
-    const ReadStatus s = (*r)->latest(m, px);
-    if (s == ReadStatus::Busy) ++busy;
-    if (s != ReadStatus::Ok) continue;
-    ++ok;
-    const auto v = static_cast<std::byte>(m.frame & 0xFF);
-    if (m.sim_time_s != static_cast<double>(m.frame) ||
-        std::any_of(px.begin(), px.end(), [&](std::byte b) { return b != v; }))
-      ++bad;
-  }
+  struct Count {
+    std::size_t ok = 0, bad = 0, busy = 0;
+    std::uint64_t retries = 0;
+  };
+  auto readLoop = [&](Count& c) {
+    auto r = ShmReader::attach(ch);
+    ASSERT_TRUE(r);
+    FrameMeta m;
+    std::vector<std::byte> px;
+    while (!done.load()) {
+      const ReadStatus s = (*r)->latest(m, px);
+      if (s == ReadStatus::Busy) ++c.busy;
+      if (s != ReadStatus::Ok) continue;
+      ++c.ok;
+      const auto v = static_cast<std::byte>(m.frame & 0xFF);
+      if (m.sim_time_s != static_cast<double>(m.frame) ||
+          std::any_of(px.begin(), px.end(), [&](std::byte b) { return b != v; }))
+        ++c.bad;
+    }
+    c.retries = (*r)->retries();
+  };
+  Count c1, c2;
+  std::thread r1([&] { readLoop(c1); }), r2([&] { readLoop(c2); });
   writer.join();
-  std::printf("  %zu whole frames read, %zu busy, %llu retries, %zu torn accepted\n", ok, busy,
-              static_cast<unsigned long long>((*r)->retries()), bad);
-  EXPECT_EQ(bad, 0u);
-  EXPECT_GT(ok, 0u);
+  r1.join();
+  r2.join();
+  std::printf("  %llu frames published; readers: %zu + %zu whole frames, %llu + %llu retries, %zu + %zu torn accepted\n",
+              static_cast<unsigned long long>(published.load()), c1.ok, c2.ok,
+              static_cast<unsigned long long>(c1.retries), static_cast<unsigned long long>(c2.retries), c1.bad, c2.bad);
+  EXPECT_EQ(c1.bad + c2.bad, 0u);
+  EXPECT_GT(c1.ok, 0u);
+  EXPECT_GT(c2.ok, 0u);
+}
+
+// Processes: a reader killed in the middle of its reads leaves the writer and other readers
+// unaffected (it has no write access); a writer killed with SIGKILL is seen as gone at once (its
+// pid is dead), and a restarted writer replaces its segment with a new generation.
+TEST(ShmChannel, KilledReaderAndKilledThenRestartedWriter) {
+  const std::string ch = channelName("kill");
+  {
+    auto w = ShmWriter::create(opts(ch));
+    ASSERT_TRUE(w);
+    std::vector<std::byte> px(64 * 32 * 8, std::byte{3});
+    (*w)->publish(FrameMeta{1}, px);
+    const pid_t reader = ::fork();
+    if (reader == 0) {
+      auto r = ShmReader::attach(ch);
+      FrameMeta m;
+      std::vector<std::byte> out;
+      for (;;)
+        if (r) (void)(*r)->latest(m, out);
+    }
+    ASSERT_GT(reader, 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    ::kill(reader, SIGKILL);
+    ::waitpid(reader, nullptr, 0);
+    for (std::uint64_t f = 2; f < 10; ++f) (*w)->publish(FrameMeta{f}, px);
+    auto r = ShmReader::attach(ch);
+    ASSERT_TRUE(r);
+    FrameMeta m;
+    std::vector<std::byte> out;
+    ASSERT_EQ((*r)->latest(m, out), ReadStatus::Ok);
+    EXPECT_EQ(m.frame, 9u);
+  }
+  // A writer process killed without cleaning up.
+  const pid_t writer = ::fork();
+  if (writer == 0) {
+    auto w = ShmWriter::create(opts(ch));
+    if (!w) ::_exit(2);
+    std::vector<std::byte> px(64 * 32 * 8, std::byte{5});
+    for (std::uint64_t f = 1;; ++f) {
+      (*w)->publish(FrameMeta{f}, px);
+      ::usleep(1000);
+    }
+  }
+  ASSERT_GT(writer, 0);
+  std::unique_ptr<ShmReader> r;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(3);
+  FrameMeta m;
+  std::vector<std::byte> out;
+  while (std::chrono::steady_clock::now() < end) {
+    auto a = ShmReader::attach(ch);
+    if (a && (*a)->latest(m, out) == ReadStatus::Ok) {
+      r = std::move(a).value();
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(r) << "the child writer never published";
+  const std::uint64_t oldGeneration = r->generation();
+  ::kill(writer, SIGKILL);
+  ::waitpid(writer, nullptr, 0);
+  EXPECT_EQ(r->latest(m, out), ReadStatus::WriterGone);  // at once: the pid is dead
+  auto restarted = ShmWriter::create(opts(ch));           // no wait for the heartbeat to age
+  ASSERT_TRUE(restarted) << restarted.error().message;
+  EXPECT_TRUE((*restarted)->replacedStale());
+  auto again = ShmReader::attach(ch);
+  ASSERT_TRUE(again);
+  EXPECT_NE((*again)->generation(), oldGeneration);
 }
 
 // The seqlock itself, deterministically: a slot caught mid-write (odd counter) is never

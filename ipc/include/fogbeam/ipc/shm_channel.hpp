@@ -90,7 +90,7 @@ enum class ReadStatus {
   Ok,          ///< a whole frame was copied
   NoFrame,     ///< nothing published yet
   Busy,        ///< every attempt overlapped a write (the reader is too slow); try again
-  WriterGone,  ///< the writer closed the channel, died (no heartbeat) or was replaced: re-attach
+  WriterGone,  ///< the writer closed the channel, died (pid gone or no heartbeat) or was replaced: re-attach
 };
 
 class ShmReader {
