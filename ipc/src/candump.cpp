@@ -6,6 +6,7 @@
 // id, '#' data, "#R[len]" remote, "##<flags>" CAN FD, "_<dlc>" raw classic DLC, '.' byte
 // separators).
 #include <fogbeam/ipc/candump.hpp>
+#include <fogbeam/util/text_scan.hpp>
 
 #include <fogbeam/physics/photometry_io.hpp>  // readTextFile
 
@@ -30,7 +31,8 @@ constexpr std::uint32_t kCanErrFlag = 0x2000'0000u;  // SocketCAN CAN_ERR_FLAG
 // (renamed, converted) get some slack, but a line cannot carry an unbounded name.
 constexpr std::size_t kMaxInterfaceName = 64;
 
-bool isBlank(char c) noexcept { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+using text::isBlank;  // fogbeam/util/text_scan.hpp
+using text::trim;
 bool isDigit(char c) noexcept { return c >= '0' && c <= '9'; }
 
 std::optional<unsigned> hexValue(char c) noexcept {
@@ -40,11 +42,6 @@ std::optional<unsigned> hexValue(char c) noexcept {
   return std::nullopt;
 }
 
-std::string_view trim(std::string_view s) noexcept {
-  while (!s.empty() && isBlank(s.front())) s.remove_prefix(1);
-  while (!s.empty() && isBlank(s.back())) s.remove_suffix(1);
-  return s;
-}
 
 // A token as shown in messages: quoted, cut to 40 characters, control bytes as '?'.
 std::string quote(std::string_view token) {

@@ -9,6 +9,7 @@
 // other statement is skipped (a string in a skipped statement may span lines, e.g. CM_
 // comments). Nothing is returned until the whole file has been read and checked.
 #include <fogbeam/ipc/dbc.hpp>
+#include <fogbeam/util/text_scan.hpp>
 
 #include <fogbeam/physics/photometry_io.hpp>  // readTextFile
 
@@ -37,18 +38,15 @@ constexpr std::uint32_t kIndependentSignalsId = 0xC000'0000u;
 constexpr std::string_view kIndependentSignalsName = "VECTOR__INDEPENDENT_SIG_MSG";
 constexpr std::size_t kMaxBits = kDbcMaxMessageSize * 8;
 
-bool isBlank(char c) noexcept { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+using text::isBlank;  // blanks, tabs, line ends (fogbeam/util/text_scan.hpp)
+using text::Line;
+using text::splitLines;
+using text::trim;
 bool isIdentStart(char c) noexcept { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_'; }
 bool isIdentChar(char c) noexcept { return isIdentStart(c) || (c >= '0' && c <= '9'); }
 bool isPunct(char c) noexcept {
   return c == ':' || c == '|' || c == '@' || c == '(' || c == ')' || c == ',' || c == '[' || c == ']' ||
          c == '"' || c == ';';
-}
-
-std::string_view trim(std::string_view s) noexcept {
-  while (!s.empty() && isBlank(s.front())) s.remove_prefix(1);
-  while (!s.empty() && isBlank(s.back())) s.remove_suffix(1);
-  return s;
 }
 
 // A token as shown in messages: quoted, cut to 40 characters.
@@ -75,26 +73,6 @@ std::string listNames(const std::vector<std::string_view>& names) {
   return out;
 }
 
-struct Line {
-  std::string_view text;
-  std::size_t number = 0;
-};
-
-std::vector<Line> splitLines(std::string_view text) {
-  std::vector<Line> lines;
-  std::size_t pos = 0;
-  if (text.substr(0, 3) == "\xEF\xBB\xBF") pos = 3;  // UTF-8 byte order mark
-  while (pos < text.size()) {
-    std::size_t end = text.find('\n', pos);
-    const std::size_t next = end == std::string_view::npos ? text.size() : end + 1;
-    if (end == std::string_view::npos) end = text.size();
-    std::string_view line = text.substr(pos, end - pos);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    lines.push_back(Line{line, lines.size() + 1});
-    pos = next;
-  }
-  return lines;
-}
 
 // Reads the fields of one statement and words errors as "file:line: expected …, found …".
 class Cursor {

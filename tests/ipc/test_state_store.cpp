@@ -98,6 +98,7 @@ TEST(StateStore, SnapshotsAreConsistentUnderConcurrentWriters) {
   std::vector<std::thread> writers;
   for (int w = 0; w < 2; ++w)
     writers.emplace_back([&, w] {
+      while (reads.load() == 0) std::this_thread::yield();  // the reader is running: overlap guaranteed
       for (int i = 0; i < 2000; ++i) {
         const double x = w * 10000 + i;
         store.applyTraffic(TrafficList{true, {car(1, x), car(2, x)}}, at(Clock::now()));

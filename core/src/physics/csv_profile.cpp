@@ -19,7 +19,7 @@
 // (I(−H, V) = I(H, V); the first H angle must then be 0); "# symmetry: none" is the default.
 #include <fogbeam/physics/photometry_io.hpp>
 
-#include "text_scan.hpp"
+#include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>
 #include <cctype>

@@ -31,7 +31,7 @@
 //    after the intensities means the counts were wrong and is an error.
 #include <fogbeam/physics/photometry_io.hpp>
 
-#include "text_scan.hpp"
+#include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>
 #include <cstddef>

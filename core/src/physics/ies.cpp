@@ -41,7 +41,7 @@
 //    blanks and the DOS end-of-file mark Ctrl-Z.
 #include <fogbeam/physics/photometry_io.hpp>
 
-#include "text_scan.hpp"
+#include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>
 #include <cstddef>

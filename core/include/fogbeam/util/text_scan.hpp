@@ -1,5 +1,6 @@
-// fogbeam — text-scanning helpers shared by the photometric file parsers (ies.cpp,
-// eulumdat.cpp, csv_profile.cpp). Private to core/src/physics.
+// fogbeam — text-scanning helpers shared by the parsers of line-oriented text formats: the
+// photometric files (ies.cpp, eulumdat.cpp, csv_profile.cpp) and the CAN codecs (ipc/src/dbc.cpp,
+// candump.cpp). Thread-safety: pure functions.
 //
 // Numbers are read with std::from_chars (locale independent, no exceptions) and must
 // fill the whole token, so "12abc" is an error rather than 12. Messages follow the
