@@ -259,8 +259,16 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
     }
     return iso->intensity_cd * (tb[0] - ta[0]);
   }
-  std::vector<double> bp{th0, thD};
-  bp.reserve(16 + cum.n);
+  // Per-thread scratch kept between calls: the image evaluator calls this per pixel from its
+  // pool threads and must not allocate per frame (256 covers the kinks of every shipped
+  // profile; more only grows the buffer once).
+  thread_local std::vector<double> bp;
+  thread_local std::vector<char> live;
+  bp.reserve(256 + cum.n);
+  live.reserve(256 + cum.n);
+  bp.clear();
+  bp.push_back(th0);
+  bp.push_back(thD);
   for (std::size_t m = 0; m < cum.n; ++m)
     if (cum.theta[m] > th0 && cum.theta[m] < thD) bp.push_back(cum.theta[m]);
   const bool tabulated = std::holds_alternative<TabulatedProfile>(model);
@@ -288,7 +296,7 @@ double accurateIntegral(const Context& c, const detail::GMomentTable& g, double 
   // Intervals between breakpoints where I is not identically zero, and their total length
   // (tabulated profiles share their pieces out over it). Spot: between cone crossings I is 0,
   // constant or a ramp, so the midpoint decides. Tabulated: the support cone decides.
-  std::vector<char> live(bp.size(), 0);
+  live.assign(bp.size(), 0);
   double liveLength = 0.0;
   const double cosSupport = std::cos(c.profile.supportHalfAngle());
   for (std::size_t i = 1; i < bp.size(); ++i) {

@@ -1,0 +1,88 @@
+// "No allocation per frame" (issue 3): after the first frames of a size, AirlightImageEvaluator
+// and compositeFrame run without touching the heap. The global operator new of this test binary
+// counts calls while `counting` is set.
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/frame.hpp>
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+namespace {
+std::atomic<bool> counting{false};
+std::atomic<long> allocations{0};
+}  // namespace
+
+// Replacement allocation functions pair malloc with free by design; GCC cannot see that the
+// replaced operator new is what returned the pointer.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+void* operator new(std::size_t n) {
+  if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+#pragma GCC diagnostic pop
+
+namespace fogbeam {
+namespace {
+
+TEST(NoAllocation, SteadyFramesDoNotAllocate) {
+  Scene s;
+  s.fog.extinction_per_m = extinctionFromVisibility(100.0);
+  s.fog.albedo = 0.95;
+  s.fog.phase = makeHenyeyGreenstein(0.85).value();
+  s.camera.position_m = {0.0, 0.37, 1.2};
+  s.camera.width = 96;
+  s.camera.height = 54;
+  auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
+  ASSERT_TRUE(low);
+  auto lamp = [&](Vec3 p, double yawDeg, std::shared_ptr<const Profile> prof, LampMount mount) {
+    SceneLamp l;
+    l.name = "lamp";
+    l.lamp.position_m = p;
+    l.lamp.worldFromLamp = worldFromYawPitchRoll(radians(yawDeg), 0.0, 0.0);
+    l.lamp.profile = std::move(prof);
+    l.mount = mount;
+    s.lamps.push_back(l);
+  };
+  // Every path of the image evaluator: view table, F table, per-ray tabulated and spot.
+  lamp({2.2, 0.7, 0.65}, 0.0, *low, LampMount::Vehicle);
+  lamp({25.0, -3.0, 8.0}, 0.0, makeProfile(IsotropicProfile{4000.0}).value(), LampMount::World);
+  lamp({45.0, 3.5, 0.65}, 180.0, *low, LampMount::World);
+  lamp({30.0, 3.5, 0.65}, 180.0, makeProfile(SpotProfile{20000.0, radians(4.0), radians(14.0)}).value(),
+       LampMount::World);
+  s.planes.push_back(Plane{{0, 0, 0}, {0, 0, 1}, 0.15});
+  SurfaceBuffers surf;
+  renderSurfacesCpu(s, surf);
+  FastPathOptions fast;
+  fast.view_table_step_deg = 1.0;
+  auto ev = AirlightImageEvaluator::build(s, AirlightMethod::Accurate, {}, 2, fast);
+  ASSERT_TRUE(ev);
+  AirlightImage img;
+  FrameLayers layers;
+  for (int warm = 0; warm < 2; ++warm) {
+    ev->evaluate(s, surf, SubsamplingOptions{}, img);
+    ev->evaluate(s, surf, SubsamplingOptions{.full = true}, img);
+    compositeFrame(s.fog, surf, img, layers);
+  }
+  allocations = 0;
+  counting = true;
+  ev->evaluate(s, surf, SubsamplingOptions{}, img);
+  ev->evaluate(s, surf, SubsamplingOptions{.full = true}, img);
+  compositeFrame(s.fog, surf, img, layers);
+  counting = false;
+  EXPECT_EQ(allocations.load(), 0) << "heap allocations during two steady frames and a composite";
+  EXPECT_GT(img.evaluated, 0u);
+}
+
+}  // namespace
+}  // namespace fogbeam
