@@ -1,6 +1,7 @@
 // The CAN input end to end: DBC mapping → lamp bits and speed in the state store, hold and
 // fallback of silent signals, and the three sources (candump replay, cannelloni over loopback
 // UDP, SocketCAN where the kernel has it).
+#include <fogbeam/ipc/can_config.hpp>
 #include <fogbeam/ipc/can_input.hpp>
 #include <fogbeam/ipc/cannelloni.hpp>
 
@@ -177,6 +178,52 @@ TEST(CanInput, SocketCanWhereTheKernelHasIt) {
   }
   (*src)->stop();
   SUCCEED() << "SocketCAN socket opened and bound on vcan0";
+}
+
+}  // namespace
+}  // namespace fogbeam::ipc
+
+namespace fogbeam::ipc {
+namespace {
+
+TEST(CanConfig, MappingFileNamesTheDbcAndSignals) {
+  auto c = loadCanConfig(std::string(FOGBEAM_TEST_DATA_DIR) + "/can/mapping.toml");
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_NE(c->dbc_path.find("tests/data/can/vehicle.dbc"), std::string::npos) << c->dbc_path;
+  EXPECT_EQ(c->mapping.hold_s, 0.25);
+  EXPECT_EQ(c->mapping.fallback_lights, light::kLowBeam);
+  EXPECT_NEAR(c->mapping.speed_to_m_s, 1.0 / 3.6, 1e-12);
+  ASSERT_TRUE(c->mapping.lamps[static_cast<std::size_t>(CanLamp::FrontFog)]);
+  EXPECT_EQ(c->mapping.lamps[static_cast<std::size_t>(CanLamp::FrontFog)]->signal, "FRONT_FOG");
+  auto d = makeDecoder(*c);
+  ASSERT_TRUE(d) << d.error().message;
+  EXPECT_EQ(d->ids().size(), 2u);
+}
+
+TEST(CanConfig, ErrorsNameFileLineAndWhatWasExpected) {
+  auto err = [](const std::string& text) {
+    auto c = parseCanConfig(text, "map.toml", "/tmp");
+    return c ? std::string("(parsed)") : c.error().message;
+  };
+  EXPECT_NE(err("dbc = \"x.dbc\"\nholds = 1\n").find("map.toml:2: unknown key 'holds'"), std::string::npos)
+      << err("dbc = \"x.dbc\"\nholds = 1\n");
+  EXPECT_NE(err("hold_s = 1\n").find("map.toml:1: dbc: missing"), std::string::npos);
+  EXPECT_NE(err("dbc = \"x.dbc\"\nhold_s = -1\n").find("map.toml:2: hold_s: expected a number of seconds"),
+            std::string::npos);
+  EXPECT_NE(err("dbc = \"x.dbc\"\n[lamps]\ndipped = { message = \"A\", signal = \"B\" }\n")
+                .find("map.toml:3: lamps: unknown lamp 'dipped'"),
+            std::string::npos);
+  EXPECT_NE(err("dbc = \"x.dbc\"\n[lamps]\nlow_beam = { message = \"A\" }\n").find("lamps.low_beam.signal: missing"),
+            std::string::npos);
+  EXPECT_NE(err("dbc = \"x.dbc\"\nfallback = [\"fog\"]\n").find("map.toml:2: fallback: expected lamp names"),
+            std::string::npos);
+  EXPECT_NE(err("dbc = \n").find("map.toml:1: TOML syntax"), std::string::npos) << err("dbc = \n");
+  CanConfig bad;
+  bad.dbc_path = std::string(FOGBEAM_TEST_DATA_DIR) + "/can/vehicle.dbc";
+  bad.mapping.lamps[0] = CanSignalRef{"LIGHT_STALK", "NOPE"};
+  auto d = makeDecoder(bad);
+  ASSERT_FALSE(d);
+  EXPECT_NE(d.error().message.find("vehicle.dbc"), std::string::npos) << d.error().message;
 }
 
 }  // namespace
