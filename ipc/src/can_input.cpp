@@ -15,6 +15,7 @@
 #include <linux/can.h>
 #include <linux/can/raw.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <mutex>
@@ -41,8 +42,9 @@ Result<CanDecoder> CanDecoder::create(const DbcDatabase& dbc, const CanMapping& 
     if (!msg) return msg.error();
     auto sig = dbc.signal(ref->message, ref->signal);
     if (!sig) return sig.error();
-    out.message = *msg;
     out.signal = **sig;
+    out.id = (*msg)->id;
+    out.extended = (*msg)->extended;
     out.present = true;
     if (std::none_of(d.messages_.begin(), d.messages_.end(), [&](const DbcMessage& m) {
           return m.id == (*msg)->id && m.extended == (*msg)->extended;
@@ -55,9 +57,6 @@ Result<CanDecoder> CanDecoder::create(const DbcDatabase& dbc, const CanMapping& 
   if (Status s = bind(mapping.speed, d.speed_); !s) return s.error();
   if (!d.speed_.present && std::none_of(d.lamps_.begin(), d.lamps_.end(), [](const Bound& b) { return b.present; }))
     return Error{"CAN mapping names no signal (lamps or speed)"};
-  // The Bound entries keep signal copies; message pointers are only compared by id below.
-  for (auto& b : d.lamps_) b.message = nullptr;
-  d.speed_.message = nullptr;
   return d;
 }
 
@@ -77,10 +76,7 @@ bool CanDecoder::onFrame(const CanFrame& frame, Clock::time_point now) {
   ++stats_.matched;
   bool any = false;
   auto take = [&](Bound& b) {
-    if (!b.present) return;
-    // Only signals of this message: a signal's name is unique within its message.
-    if (std::none_of(it->signals.begin(), it->signals.end(), [&](const DbcSignal& s) { return s.name == b.signal.name; }))
-      return;
+    if (!b.present || b.id != frame.id || b.extended != frame.extended) return;
     const auto v = decodeSignalValue(b.signal, frame);
     if (!v) return;  // too short, or the multiplexor selects another signal
     if (v->out_of_range) {

@@ -78,8 +78,9 @@ class CanDecoder {
 
  private:
   struct Bound {
-    const DbcMessage* message = nullptr;
-    DbcSignal signal;
+    DbcSignal signal;  ///< a copy: the decoder outlives the DbcDatabase it was built from
+    std::uint32_t id = 0;  ///< the signal's message
+    bool extended = false;
     bool present = false;
     double value = 0.0;
     Clock::time_point seen{};
