@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   fogbeam::cli::addProfileCommand(app, exitCode);
   fogbeam::cli::addRenderCommand(app, exitCode);
   fogbeam::cli::addBenchCommand(app, exitCode);
+  fogbeam::cli::addServeCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
 }

@@ -408,6 +408,12 @@ double AirlightEvaluator::evaluate(const Ray& ray) const noexcept {
   return 0.0;
 }
 
+void AirlightEvaluator::setPose(const Vec3& position_m, const Mat3& worldFromLamp) noexcept {
+  lamp_.position_m = position_m;
+  lamp_.worldFromLamp = worldFromLamp;
+  lampFromWorld_ = glm::transpose(worldFromLamp);
+}
+
 void AirlightEvaluator::evaluateCumulative(const Ray& ray, const double* distances, std::size_t n,
                                            double* out) const {
   const double kt = medium_.extinction_per_m;

@@ -29,7 +29,17 @@ struct ViewKey {
   Mat3 lampAxesInCamera{1.0};
   double fovX = 0.0, aspect = 0.0;
   double kt = 0.0, albedo = 0.0;
-  bool operator==(const ViewKey&) const = default;
+  // Equal up to rounding: a moving vehicle recomputes the lamp's camera-frame pose from world
+  // poses every frame (R^T R ≠ I in the last bits), which must not rebuild the tables.
+  [[nodiscard]] bool sameAs(const ViewKey& o) const noexcept {
+    constexpr double kTol = 1e-7;  // metres and unit-vector components
+    for (int i = 0; i < 3; ++i) {
+      if (std::abs(lampInCamera[i] - o.lampInCamera[i]) > kTol) return false;
+      for (int j = 0; j < 3; ++j)
+        if (std::abs(lampAxesInCamera[i][j] - o.lampAxesInCamera[i][j]) > kTol) return false;
+    }
+    return fovX == o.fovX && aspect == o.aspect && kt == o.kt && albedo == o.albedo;
+  }
 };
 
 }  // namespace
@@ -51,6 +61,8 @@ struct AirlightImageEvaluator::State {
   std::vector<ViewKey> viewKeys;
   std::vector<bool> viewValid;
   std::vector<kernels::IsoLamp> isoParams;  // this frame, capacity kept
+  std::vector<char> enabled;                 // per lamp (scene order)
+  std::vector<char> viewEnabled;             // per viewLamps entry, this frame
 
   // Per-frame buffers, sized once per image size.
   std::vector<unsigned char> done;  // per pixel: evaluated (1)
@@ -95,8 +107,23 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
   st.rayGuards.resize(st.viewLamps.size());
   st.viewKeys.resize(st.viewLamps.size());
   st.viewValid.assign(st.viewLamps.size(), false);
+  st.enabled.assign(scene.lamps.size(), 1);
+  st.viewEnabled.assign(st.viewLamps.size(), 1);
   e.pool_ = std::make_shared<ThreadPool>(threads);
   return e;
+}
+
+Status AirlightImageEvaluator::setLampPoses(const Scene& scene) {
+  if (scene.lamps.size() != lamps_.size())
+    return Error{"setLampPoses: the scene has " + std::to_string(scene.lamps.size()) + " lamps, the evaluator " +
+                 std::to_string(lamps_.size())};
+  for (std::size_t i = 0; i < lamps_.size(); ++i)
+    lamps_[i].setPose(scene.lamps[i].lamp.position_m, scene.lamps[i].lamp.worldFromLamp);
+  return Ok{};
+}
+
+void AirlightImageEvaluator::setLampEnabled(std::size_t index, bool on) {
+  if (index < state_->enabled.size()) state_->enabled[index] = on ? 1 : 0;
 }
 
 void AirlightImageEvaluator::evaluateRay(const Ray& ray, float rgb[3]) const noexcept {
@@ -209,8 +236,9 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
     }
     return m;
   };
-  for (const kernels::ViewTable& vt : st.viewTables) {
-    if (vt.data.empty()) continue;
+  for (std::size_t ti = 0; ti < st.viewTables.size(); ++ti) {
+    const kernels::ViewTable& vt = st.viewTables[ti];
+    if (vt.data.empty() || !st.viewEnabled[ti / kTablesPerLamp]) continue;
     if (vt.outerR2 >= 1e30f) {
       kernels::accumulateViewTable(vt, f.geo, px, r, g, b);
       continue;
@@ -237,7 +265,7 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
   // Pixels at the image of a vehicle lamp: per ray (see State::rayGuards).
   for (std::size_t v = 0; v < st.rayGuards.size(); ++v) {
     const auto& gd = st.rayGuards[v];
-    if (gd.r2 < 0.0 || !reaches(gd.a, gd.b, gd.r2)) continue;
+    if (gd.r2 < 0.0 || !st.viewEnabled[v] || !reaches(gd.a, gd.b, gd.r2)) continue;
     const std::size_t m = compact(gd.a, gd.b, gd.r2);
     const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
     for (std::size_t c = 0; c < m; ++c) {
@@ -258,6 +286,7 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
                     static_cast<double>(px.d[k])};
       double acc[3] = {0.0, 0.0, 0.0};
       for (std::size_t li : st.rayLamps) {
+        if (!st.enabled[li]) continue;
         const AirlightEvaluator& ev = (*f.lamps)[li];
         const double l = ev.evaluate(ray);
         for (int c = 0; c < 3; ++c) acc[c] += l * ev.lamp().color[c];
@@ -426,6 +455,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   // Lamps in camera coordinates: isotropic kernel parameters, view-table validity.
   st.isoParams.clear();
   for (std::size_t li : st.isoLamps) {
+    if (!st.enabled[li]) continue;
     const AirlightEvaluator& ev = lamps_[li];
     const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
     const double kt = ev.medium().extinction_per_m;
@@ -440,11 +470,12 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     st.isoParams.push_back(l);
   }
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
+    st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
     const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
     const ViewKey key{camFromWorld * (ev.lamp().position_m - cam.position_m), camFromWorld * ev.lamp().worldFromLamp,
                       cam.fov_x, static_cast<double>(cam.height) / cam.width, ev.medium().extinction_per_m,
                       ev.medium().albedo};
-    if (st.viewValid[v] && st.viewKeys[v] == key) continue;
+    if (st.viewValid[v] && st.viewKeys[v].sameAs(key)) continue;
     kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
     tables[0] = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_);
     for (std::size_t t = 1; t < kTablesPerLamp; ++t) tables[t] = kernels::ViewTable{};
@@ -484,7 +515,9 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   }
   // Image positions of lamps in front of the camera (capacity kept between frames).
   st.lampPixels.clear();
-  for (const AirlightEvaluator& ev : lamps_) {
+  for (std::size_t li = 0; li < lamps_.size(); ++li) {
+    if (!st.enabled[li]) continue;
+    const AirlightEvaluator& ev = lamps_[li];
     const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
     if (p.x <= 0.0) continue;
     st.lampPixels.emplace_back(0.5 * cam.width - focal * p.y / p.x, 0.5 * cam.height - focal * p.z / p.x);

@@ -97,6 +97,10 @@ class AirlightEvaluator {
   /// evaluator's view tables are built from; other methods call evaluate() per distance.
   void evaluateCumulative(const Ray& ray, const double* distances, std::size_t n, double* out) const;
 
+  /// Moves the lamp (a vehicle's lamp follows its vehicle every frame); tables are kept.
+  /// Not thread-safe with evaluate().
+  void setPose(const Vec3& position_m, const Mat3& worldFromLamp) noexcept;
+
   [[nodiscard]] AirlightMethod method() const noexcept { return method_; }
   [[nodiscard]] const TableStats& stats() const noexcept { return stats_; }
   [[nodiscard]] const Lamp& lamp() const noexcept { return lamp_; }

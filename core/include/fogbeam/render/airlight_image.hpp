@@ -73,6 +73,13 @@ class AirlightImageEvaluator {
   /// Fills `out` for the scene's camera using `surface.distance` (+inf = sky).
   void evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt, AirlightImage& out);
 
+  /// Takes the lamps' poses from `scene` (same lamps, same order as at build): vehicles move
+  /// between frames. Tables are kept; view tables stay valid while a lamp's pose relative to
+  /// the camera does not change. Errors when the lamp count differs.
+  [[nodiscard]] Status setLampPoses(const Scene& scene);
+  /// Switches lamp `index` (scene order) on or off for the following frames (lamp switching).
+  void setLampEnabled(std::size_t index, bool on);
+
   /// Sum over lamps of colour × L_m for one ray (cd/m² per channel), every lamp through the
   /// per-ray evaluator of the method (no tables): the definition the fast path is tested against.
   void evaluateRay(const Ray& ray, float rgb[3]) const noexcept;
