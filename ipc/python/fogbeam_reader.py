@@ -122,7 +122,7 @@ def main(argv):
     while reader is None:
         try:
             reader = FogbeamReader(a.channel)
-        except FileNotFoundError:
+        except (FileNotFoundError, ValueError):  # not there yet, or its header not yet written
             if time.monotonic() > end:
                 print(f"fogbeam_reader: no channel '{a.channel}'", file=sys.stderr)
                 return 1

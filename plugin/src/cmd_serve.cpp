@@ -7,8 +7,10 @@
 // file (docs/scene.md) read in the vehicle's frame: its camera is the driver's eye relative to the
 // vehicle reference point, lamps with mount = "vehicle" are the ego rig (a lamp whose name says
 // "low beam", "high beam", "front fog", "rear fog" or "tail" follows that light bit; others are
-// always on), world lamps and geometry stay where they are. Traffic objects are received and
-// counted but not drawn yet. Fog comes from the environment message once one has arrived.
+// always on), world lamps and geometry stay where they are. Traffic objects are drawn with the
+// rig of --traffic-rig (a scene file read the same way: its vehicle lamps in the traffic vehicle's
+// frame), for every vehicle class; their lamps are evaluated per ray (world-fixed measured
+// profiles: the slow path). Fog comes from the environment message once one has arrived.
 #include "commands.hpp"
 
 #include <fogbeam/gl/surface_pass.hpp>
@@ -64,6 +66,7 @@ struct ServeOptions {
   int canCannelloniPort = -1;
   std::string canInterface;
   double viewTableStepDeg = 0.5;
+  std::string trafficRig;
   unsigned threads = 0;
 };
 
@@ -166,8 +169,23 @@ int run(const ServeOptions& o) {
     } else spdlog::warn("serve: GL unavailable ({}); CPU planes only", g.error().message);
   }
 
+  std::vector<SceneLamp> rig;  // traffic rig, in the traffic vehicle's frame
+  if (!o.trafficRig.empty()) {
+    auto r = loadScene(o.trafficRig);
+    if (!r) {
+      std::fprintf(stderr, "fogbeam serve: --traffic-rig: %s\n", r.error().message.c_str());
+      return 2;
+    }
+    for (const SceneLamp& l : r->lamps)
+      if (l.mount == LampMount::Vehicle) rig.push_back(l);
+    if (rig.empty()) {
+      std::fprintf(stderr, "fogbeam serve: --traffic-rig %s has no lamp with mount = \"vehicle\"\n", o.trafficRig.c_str());
+      return 2;
+    }
+  }
   FastPathOptions fast;
   fast.view_table_step_deg = o.viewTableStepDeg;
+  AirlightImage trafficAir;
   Scene world = local;
   std::unique_ptr<AirlightImageEvaluator> eval;
   std::uint32_t evalEnvSequence = 0;
@@ -178,6 +196,24 @@ int run(const ServeOptions& o) {
   std::vector<std::byte> packed(n * ipc::bytesPerPixel(format));
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
+  // A frame may take longer than a reader's heartbeat timeout (the first one builds tables):
+  // the heartbeat says "alive", not "a frame is due", so it beats on its own thread.
+  std::atomic<bool> beating{true};
+  ipc::ShmWriter* beatWriter = writer->get();
+  std::thread heart([&beating, beatWriter] {
+    while (beating.load()) {
+      beatWriter->heartbeat();
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+  });
+  struct Join {
+    std::atomic<bool>& flag;
+    std::thread& t;
+    ~Join() {
+      flag = false;
+      t.join();
+    }
+  } join{beating, heart};
   spdlog::info("serve: scene {}, channel /fogbeam.{} {}x{} {}, {} at {} Hz, UDP {}:{}", o.scene, o.channel, W, H,
                o.format, o.lockStep ? "lock-step" : "free-running", o.rate_hz, o.udpBind, (*rx)->port());
 
@@ -244,10 +280,44 @@ int run(const ServeOptions& o) {
       eval->setLampEnabled(i, on);
       if (on) lit.lamps.push_back(world.lamps[i]);
     }
+    // Traffic: each live object's rig lamps that its light bits switch on, placed at its pose.
+    Scene traffic = world;
+    traffic.lamps.clear();
+    if (!rig.empty()) {
+      const auto now = Clock::now();
+      for (const ipc::TrafficEntry& e : snap->traffic) {
+        if (!snap->live(e, now)) continue;
+        const ipc::Pose& tp = e.object.pose;
+        const Mat3 TR = worldFromYawPitchRoll(radians(static_cast<double>(tp.yaw_deg)),
+                                              radians(static_cast<double>(tp.pitch_deg)),
+                                              radians(static_cast<double>(tp.roll_deg)));
+        const Vec3 to(tp.position_m[0], tp.position_m[1], tp.position_m[2]);
+        for (const SceneLamp& l : rig) {
+          const std::uint32_t bit = lightBitFor(l.name);
+          if (bit != 0 && (e.object.lights & bit) == 0) continue;
+          SceneLamp w = l;
+          w.mount = LampMount::World;
+          w.lamp.position_m = to + TR * l.lamp.position_m;
+          w.lamp.worldFromLamp = TR * l.lamp.worldFromLamp;
+          traffic.lamps.push_back(w);
+          lit.lamps.push_back(w);
+        }
+      }
+    }
     const auto tS = Clock::now();
     if (!gl || !gl->render(lit, surface)) renderSurfacesCpu(lit, surface);
     const auto tA = Clock::now();
     eval->evaluate(world, surface, SubsamplingOptions{}, air);
+    if (!traffic.lamps.empty()) {
+      // Built per frame on the same pool: per-lamp tables come from the caches.
+      auto te = AirlightImageEvaluator::build(traffic, AirlightMethod::Accurate, {}, eval->pool(), fast);
+      if (te) {
+        te->evaluate(traffic, surface, SubsamplingOptions{}, trafficAir);
+        for (std::size_t k = 0; k < air.rgb.size(); ++k) air.rgb[k] += trafficAir.rgb[k];
+      } else {
+        spdlog::error("serve: traffic lamps: {}", te.error().message);
+      }
+    }
     const auto tC = Clock::now();
     compositeFrame(world.fog, surface, air, layers);
     if (format == FOGBEAM_FORMAT_RGBA8_SRGB)
@@ -337,6 +407,9 @@ void addServeCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--can-interface", o->canInterface, "SocketCAN interface (e.g. can0)");
   sub->add_option("--view-table-step", o->viewTableStepDeg, "view-table direction spacing, deg (default 0.5)")
       ->check(CLI::Range(0.05, 5.0));
+  sub->add_option("--traffic-rig", o->trafficRig,
+                  "scene file whose mount = \"vehicle\" lamps are the traffic vehicles' rig (in their frame)")
+      ->check(CLI::ExistingFile);
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
   sub->callback([o, &exitCode] { exitCode = run(*o); });
 }

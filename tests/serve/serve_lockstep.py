@@ -7,7 +7,7 @@ environment, lamp state, ego pose, then frame requests; reads every frame with t
 Runs twice and requires identical pixels (lock-step runs are deterministic), then stops the
 service with SIGTERM and requires a clean exit with the segment unlinked.
 
-usage: serve_lockstep.py FOGBEAM_BINARY SCENE READER_DIR
+usage: serve_lockstep.py FOGBEAM_BINARY SCENE READER_DIR RIG
 """
 import os
 import signal
@@ -20,7 +20,7 @@ import time
 sys.path.insert(0, sys.argv[3])
 from fogbeam_reader import FogbeamReader  # noqa: E402
 
-FOGBEAM, SCENE = sys.argv[1], sys.argv[2]
+FOGBEAM, SCENE, RIG = sys.argv[1], sys.argv[2], sys.argv[4]
 LOW_BEAM, HIGH_BEAM = 0x2, 0x4
 
 
@@ -41,15 +41,20 @@ def run_once(tag):
     port = free_port()
     proc = subprocess.Popen([FOGBEAM, "serve", "--scene", SCENE, "--channel", channel, "--lock-step", "--surface", "cpu",
                              "--udp-port", str(port), "--view-table-step", "1.0", "--format", "rgba16f-overlay",
+                             "--traffic-rig", RIG,
                              "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         path = f"/dev/shm/fogbeam.{channel}"
         end = time.monotonic() + 20
-        while not os.path.exists(path):
-            if proc.poll() is not None or time.monotonic() > end:
-                raise SystemExit(f"serve did not create {path}: {proc.stdout.read() if proc.poll() is not None else ''}")
-            time.sleep(0.02)
-        reader = FogbeamReader(channel)
+        reader = None
+        while reader is None:  # the segment appears before its header is written: retry
+            try:
+                reader = FogbeamReader(channel)
+            except (FileNotFoundError, ValueError):
+                if proc.poll() is not None or time.monotonic() > end:
+                    raise SystemExit(f"serve did not create {path}: "
+                                     f"{proc.stdout.read() if proc.poll() is not None else ''}")
+                time.sleep(0.02)
         tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         seq = 0
 
@@ -61,8 +66,13 @@ def run_once(tag):
 
         env_seq = send(4, struct.pack("<fffBBBBfff", 60.0, 0.0, 1.0, 1, 0, 0, 0, 0.85, 10.0, 0.0))
         lamp_seq = send(2, struct.pack("<IfI", LOW_BEAM | HIGH_BEAM, 0.0, 0))
+        # One oncoming car in the other lane, low beams on (a complete list, sent with every
+        # pose as a host does: objects not updated for 1 s expire).
+        car = (struct.pack("<HH", 1, 1) + struct.pack("<IHH", 7, 0, 0) +
+               struct.pack("<dddfff", 40.0, 3.5, 0.0, 180.0, 0.0, 0.0) + struct.pack("<I", LOW_BEAM))
         frames = []
         for k in range(1, 5):
+            send(3, car)
             ego_seq = send(1, struct.pack("<ddd fff f".replace(" ", ""), 5.0 * k, 0.0, 0.0, 2.0 * k, 0.0, 0.0, 12.0))
             time.sleep(0.05)  # the state is applied before the request (one socket, in order)
             send(5, struct.pack("<Q", 100 + k))
@@ -80,6 +90,7 @@ def run_once(tag):
             assert meta["ego_sequence"] == ego_seq, (meta, ego_seq)
             assert meta["lamp_sequence"] == lamp_seq and meta["environment_sequence"] == env_seq, meta
             assert abs(meta["yaw_deg"] - 2.0 * k) < 1e-6, meta
+            assert meta["traffic_count"] == 1, meta
             frames.append(pixels.tobytes())
             print(f"  {tag}: frame {meta['frame']} total {meta['total_ms']:.1f} ms latency {meta['latency_ms']:.1f} ms")
         reader.close()
@@ -88,6 +99,11 @@ def run_once(tag):
         assert proc.returncode == 0, f"serve exited {proc.returncode}: {out}"
         assert not os.path.exists(path), "segment not unlinked on SIGTERM"
         return frames
+    except BaseException:
+        if proc.poll() is None:
+            proc.kill()
+        print("serve output:\n" + proc.stdout.read(), file=sys.stderr)
+        raise
     finally:
         if proc.poll() is None:
             proc.kill()

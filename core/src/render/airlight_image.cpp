@@ -84,6 +84,13 @@ struct AirlightImageEvaluator::State {
 Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene, AirlightMethod method,
                                                              const AirlightOptions& options, unsigned threads,
                                                              const FastPathOptions& fast) {
+  return build(scene, method, options, std::make_shared<ThreadPool>(threads), fast);
+}
+
+Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene, AirlightMethod method,
+                                                             const AirlightOptions& options,
+                                                             std::shared_ptr<ThreadPool> pool,
+                                                             const FastPathOptions& fast) {
   AirlightImageEvaluator e;
   e.state_ = std::make_shared<State>();
   State& st = *e.state_;
@@ -109,7 +116,7 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
   st.viewValid.assign(st.viewLamps.size(), false);
   st.enabled.assign(scene.lamps.size(), 1);
   st.viewEnabled.assign(st.viewLamps.size(), 1);
-  e.pool_ = std::make_shared<ThreadPool>(threads);
+  e.pool_ = std::move(pool);
   return e;
 }
 

@@ -69,6 +69,12 @@ class AirlightImageEvaluator {
   [[nodiscard]] static Result<AirlightImageEvaluator> build(const Scene& scene, AirlightMethod method,
                                                             const AirlightOptions& options = {},
                                                             unsigned threads = 0, const FastPathOptions& fast = {});
+  /// The same on an existing thread pool (evaluators built per frame must not start threads).
+  [[nodiscard]] static Result<AirlightImageEvaluator> build(const Scene& scene, AirlightMethod method,
+                                                            const AirlightOptions& options,
+                                                            std::shared_ptr<ThreadPool> pool,
+                                                            const FastPathOptions& fast = {});
+  [[nodiscard]] const std::shared_ptr<ThreadPool>& pool() const noexcept { return pool_; }
 
   /// Fills `out` for the scene's camera using `surface.distance` (+inf = sky).
   void evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt, AirlightImage& out);

@@ -10,7 +10,7 @@
 // attaches by channel name, validates the header against the mapping, and copies the newest
 // complete frame; it notices a closed, dead or restarted writer (generation change).
 //
-// Thread-safety: one thread per ShmWriter; one thread per ShmReader. Any number of readers in
+// Thread-safety: one thread per ShmWriter (heartbeat() from any thread); one thread per ShmReader. Any number of readers in
 // any number of processes may read one channel while its writer publishes.
 #pragma once
 
@@ -68,7 +68,8 @@ class ShmWriter {
   /// width·height floats when the channel has a distance plane (else it is ignored). Never
   /// waits for readers. Returns the slot used.
   std::uint32_t publish(FrameMeta meta, std::span<const std::byte> pixels, std::span<const float> distance = {});
-  /// Refreshes the heartbeat without a frame (a paused service stays "alive").
+  /// Refreshes the heartbeat without a frame (a paused or slow service stays "alive"). May be
+  /// called from another thread than publish() (one atomic store).
   void heartbeat() noexcept;
 
   [[nodiscard]] const std::string& segmentName() const noexcept { return name_; }
