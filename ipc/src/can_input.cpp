@@ -46,10 +46,8 @@ Result<CanDecoder> CanDecoder::create(const DbcDatabase& dbc, const CanMapping& 
     out.id = (*msg)->id;
     out.extended = (*msg)->extended;
     out.present = true;
-    if (std::none_of(d.messages_.begin(), d.messages_.end(), [&](const DbcMessage& m) {
-          return m.id == (*msg)->id && m.extended == (*msg)->extended;
-        }))
-      d.messages_.push_back(**msg);
+    const std::pair<std::uint32_t, bool> key{out.id, out.extended};
+    if (std::find(d.ids_.begin(), d.ids_.end(), key) == d.ids_.end()) d.ids_.push_back(key);
     return Ok{};
   };
   for (std::size_t k = 0; k < kCanLampCount; ++k)
@@ -60,19 +58,13 @@ Result<CanDecoder> CanDecoder::create(const DbcDatabase& dbc, const CanMapping& 
   return d;
 }
 
-std::vector<std::pair<std::uint32_t, bool>> CanDecoder::ids() const {
-  std::vector<std::pair<std::uint32_t, bool>> out;
-  for (const DbcMessage& m : messages_) out.emplace_back(m.id, m.extended);
-  return out;
-}
+std::vector<std::pair<std::uint32_t, bool>> CanDecoder::ids() const { return ids_; }
 
 bool CanDecoder::onFrame(const CanFrame& frame, Clock::time_point now) {
   ++stats_.frames;
   if (frame.remote) return false;
-  const auto it = std::find_if(messages_.begin(), messages_.end(), [&](const DbcMessage& m) {
-    return m.id == frame.id && m.extended == frame.extended;
-  });
-  if (it == messages_.end()) return false;
+  if (std::find(ids_.begin(), ids_.end(), std::pair<std::uint32_t, bool>{frame.id, frame.extended}) == ids_.end())
+    return false;
   ++stats_.matched;
   bool any = false;
   auto take = [&](Bound& b) {

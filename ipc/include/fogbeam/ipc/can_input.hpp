@@ -87,7 +87,7 @@ class CanDecoder {
     bool silentLogged = false;
   };
   CanMapping mapping_;
-  std::vector<DbcMessage> messages_;  // copies of the mapped messages (ids)
+  std::vector<std::pair<std::uint32_t, bool>> ids_;  // (id, extended) of the mapped messages
   std::array<Bound, kCanLampCount> lamps_{};
   Bound speed_{};
   CanStats stats_;
