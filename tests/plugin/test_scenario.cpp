@@ -248,7 +248,7 @@ TEST(Scenario, EsminiCsvTrajectory) {
 TEST(Scenario, BadFilesSayWhereAndWhat) {
   const std::string ego = "[ego]\n[[ego.key]]\nt_s = 0\nposition_m = [0, 0, 0]\n";
   const std::string colour = header() + "[ego]\ncolour = 1\n[[ego.key]]\nt_s = 0\nposition_m = [0, 0, 0]\n";
-  EXPECT_NE(errorOf(colour).find("bad.toml:4: [ego] unknown key 'colour'"), std::string::npos) << errorOf(colour);
+  EXPECT_NE(errorOf(colour).find("bad.toml:4: [ego]: unknown key 'colour'"), std::string::npos) << errorOf(colour);
   EXPECT_NE(errorOf(header()).find("missing table [ego]"), std::string::npos);
   EXPECT_NE(errorOf("duration_s = 1\n" + ego).find("scene: missing"), std::string::npos) << errorOf("duration_s = 1\n" + ego);
   EXPECT_NE(errorOf("scene = \"nope.toml\"\nduration_s = 1\n" + ego).find("bad.toml:1: scene: file not found"),
