@@ -415,6 +415,23 @@ std::vector<std::vector<std::uint8_t>> encodeState(const ScenarioState& state, s
   return out;
 }
 
+void applyState(const ScenarioState& state, ipc::StateStore& store, std::uint32_t& sequence,
+                ipc::Clock::time_point received) {
+  auto stamp = [&] {
+    ipc::Stamp s;
+    s.valid = true;
+    s.sim_time_s = state.t_s;
+    s.sequence = sequence++;
+    s.received = received;
+    s.source = "scenario";
+    return s;
+  };
+  store.setEnvironment(state.environment, stamp());
+  store.setLamps(state.ego_lamps, stamp());
+  (void)store.applyTraffic(state.traffic, stamp());
+  store.setEgo(state.ego, stamp());
+}
+
 Result<std::uint32_t> lightsFromNames(const std::vector<std::string>& names) {
   std::uint32_t bits = 0;
   for (const std::string& n : names) {

@@ -7,7 +7,7 @@ environment, lamp state, ego pose, then frame requests; reads every frame with t
 Runs twice and requires identical pixels (lock-step runs are deterministic), then stops the
 service with SIGTERM and requires a clean exit with the segment unlinked.
 
-usage: serve_lockstep.py FOGBEAM_BINARY SCENE READER_DIR RIG
+usage: serve_lockstep.py FOGBEAM_BINARY SERVICE_CONFIG READER_DIR
 """
 import os
 import signal
@@ -20,7 +20,7 @@ import time
 sys.path.insert(0, sys.argv[3])
 from fogbeam_reader import FogbeamReader  # noqa: E402
 
-FOGBEAM, SCENE, RIG = sys.argv[1], sys.argv[2], sys.argv[4]
+FOGBEAM, CONFIG = sys.argv[1], sys.argv[2]
 LOW_BEAM, HIGH_BEAM = 0x2, 0x4
 
 
@@ -37,12 +37,12 @@ def free_port():
 
 
 def run_once(tag):
-    channel = f"ctest-lockstep-{os.getpid()}-{tag}"
+    prefix = f"ctest-lockstep-{os.getpid()}-{tag}-"
+    channel = prefix + "main"
     port = free_port()
-    proc = subprocess.Popen([FOGBEAM, "serve", "--scene", SCENE, "--channel", channel, "--lock-step", "--surface", "cpu",
-                             "--udp-port", str(port), "--view-table-step", "1.0", "--format", "rgba16f-overlay",
-                             "--traffic-rig", RIG,
-                             "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen([FOGBEAM, "serve", "--config", CONFIG, "--channel-prefix", prefix, "--lock-step",
+                             "--udp-port", str(port), "--duration", "60"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         path = f"/dev/shm/fogbeam.{channel}"
         end = time.monotonic() + 20

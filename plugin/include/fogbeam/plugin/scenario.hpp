@@ -21,6 +21,7 @@
 #pragma once
 
 #include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/ipc/state_store.hpp>
 #include <fogbeam/physics/math.hpp>
 #include <fogbeam/util/result.hpp>
 
@@ -109,6 +110,12 @@ struct ScenarioState {
 /// (advanced): ego, lamps, environment, traffic (split over datagrams when needed).
 [[nodiscard]] std::vector<std::vector<std::uint8_t>> encodeState(const ScenarioState& state,
                                                                  std::uint32_t& sequence);
+
+/// Applies one state to a store as if its messages had arrived at `received` (source
+/// "scenario"; sequence numbers from `sequence`, advanced): what `fogbeam replay` and
+/// `fogbeam serve --scenario` do instead of going through UDP.
+void applyState(const ScenarioState& state, ipc::StateStore& store, std::uint32_t& sequence,
+                ipc::Clock::time_point received);
 
 /// Light bits from names: "position", "low-beam", "high-beam", "brake", "indicator-left",
 /// "indicator-right", "front-fog", "rear-fog", "drl". Unknown names: error listing them.

@@ -1,0 +1,126 @@
+// fogbeam — the service configuration of `fogbeam serve` (docs/service.md, key by key).
+//
+// Layers, later ones winning: the built-in default (config/service/default.toml, embedded in
+// the binary), then a file (--config), then command-line settings (--set key=value and the
+// named options). Each layer is parsed on its own, so an error names the layer's file (or
+// "command line") and line; a key a layer leaves out keeps its value from the layer below.
+// Tables merge key by key; an array of tables ([[channel]], [[ego.lamp]], [[traffic_class]])
+// and the [fog] table replace the layer below's whole.
+//
+// Thread-safety: plain values; loading is reentrant.
+#pragma once
+
+#include <fogbeam/ipc/can_config.hpp>
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/result.hpp>
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fogbeam::plugin {
+
+/// A lamp of a vehicle rig, in the vehicle frame.
+struct RigLamp {
+  SceneLamp lamp;          ///< mount is Vehicle; pose relative to the vehicle reference point
+  std::string role;        ///< "low-beam", "high-beam", "front-fog", "rear-fog", "position", "brake", "drl", "always"
+  std::uint32_t light_bit = 0;  ///< ipc::light bit that switches it; 0 = always on
+  bool bending = false;    ///< swivels about the vehicle's z with the host's bending angle (ego only)
+  std::string definition;  ///< its TOML table with resolved paths (for --print-config)
+};
+
+struct VehicleRig {
+  std::string name;
+  std::vector<RigLamp> lamps;
+};
+
+/// One output view: a shared-memory channel.
+struct ChannelConfig {
+  std::string name = "main";       ///< segment /fogbeam.<name>
+  int width = 320, height = 180;   ///< pixels
+  double fov_x_deg = 60.0;         ///< horizontal field of view of a centred pinhole
+  Vec3 eye_offset_m{0.0};          ///< from the driver's eye, vehicle frame
+  double yaw_deg = 0.0, pitch_deg = 0.0, roll_deg = 0.0;  ///< relative to the vehicle
+  std::string format = "rgba8-srgb";  ///< "rgba8-srgb" | "rgba16f-linear" | "rgba16f-overlay"
+  bool distance = false;           ///< also publish the f32 distance plane
+  double exposure_ev = 0.0;        ///< rgba8-srgb tone mapping exposure
+};
+
+struct ServiceConfig {
+  std::vector<std::string> layers;  ///< where each layer came from, in order
+
+  // [world]
+  std::string scene_path;     ///< resolved: the world scene (world lamps, planes, glTF)
+  std::string scenario_path;  ///< resolved; empty = no scenario
+  bool scenario_loop = true;
+
+  Medium fog;                 ///< [fog]: until an environment message arrives
+  std::string fog_text;       ///< [fog] as given (for --print-config)
+
+  // [render]
+  std::string method = "accurate";
+  bool subsampling = true;
+  double view_table_step_deg = 0.5;
+  std::string surface = "auto";
+  unsigned threads = 0;
+
+  // [timing]
+  bool lock_step = false;
+  double rate_hz = 30.0;
+
+  // [status]
+  double status_interval_s = 5.0;
+  std::uint16_t status_udp_port = 47801;  ///< 0 = off
+
+  // [input.udp]
+  std::string udp_bind = "127.0.0.1";
+  std::uint16_t udp_port = 47800;
+  std::string udp_multicast;
+  std::vector<std::string> udp_allow;
+  double traffic_timeout_s = 1.0;
+
+  // [input.can]
+  std::string can_source = "none";  ///< "none" | "interface" | "candump" | "cannelloni"
+  std::string can_interface;        ///< SocketCAN interface
+  std::string can_candump;          ///< resolved candump -L log
+  double can_candump_speed = 1.0;   ///< replay speed factor
+  std::uint16_t can_cannelloni_port = 0;
+  std::string can_mapping_path;     ///< resolved CAN mapping file (docs/can.md)
+
+  std::vector<ChannelConfig> channels;
+
+  // [ego]
+  Vec3 eye_m{1.3, 0.37, 1.2};
+  double bending_max_deg = 15.0;
+  VehicleRig ego;
+
+  /// By class; class 0 stands in for classes without a rig.
+  std::map<std::uint16_t, VehicleRig> traffic;
+  [[nodiscard]] const VehicleRig* rigFor(std::uint16_t vehicleClass) const;
+};
+
+/// The built-in default's text and the directory its relative paths resolve against
+/// ($FOGBEAM_CONFIG_DIR, else the repository's config/ directory fixed at build time).
+[[nodiscard]] std::string_view builtinServiceConfig();
+[[nodiscard]] std::string builtinConfigDir();
+
+/// Applies one layer (TOML text) over `config`. `name` is used in messages, `baseDir` resolves
+/// relative paths. On error `config` may be partly updated: callers discard it.
+[[nodiscard]] Status applyServiceLayer(ServiceConfig& config, std::string_view text, const std::string& name,
+                                       const std::string& baseDir);
+
+/// Built-in default, then `file` (when not empty), then each "key.path=value" of `settings`
+/// (value in TOML syntax: 60, "text", [1, 2, 3], true); then checks the whole.
+[[nodiscard]] Result<ServiceConfig> loadServiceConfig(const std::string& file, const std::vector<std::string>& settings);
+
+/// Cross-key checks (unique channel names, overlay format needs no exposure, a rig for class 0,
+/// a CAN source with its mapping …).
+[[nodiscard]] Status validate(const ServiceConfig& config);
+
+/// The effective configuration as TOML (every key, resolved paths), for --print-config.
+[[nodiscard]] std::string toToml(const ServiceConfig& config);
+
+}  // namespace fogbeam::plugin

@@ -1,0 +1,291 @@
+// fogbeam — one output view of the service (frame_renderer.hpp).
+#include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/ipc/shm_layout.h>
+#include <fogbeam/plugin/frame_renderer.hpp>
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/pixel_pack.hpp>
+#include <fogbeam/render/surface.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <future>
+#include <optional>
+#include <utility>
+
+namespace fogbeam::plugin {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
+
+Mat3 rotation(const ipc::Pose& p) {
+  return worldFromYawPitchRoll(radians(static_cast<double>(p.yaw_deg)), radians(static_cast<double>(p.pitch_deg)),
+                               radians(static_cast<double>(p.roll_deg)));
+}
+
+Vec3 position(const ipc::Pose& p) { return Vec3(p.position_m[0], p.position_m[1], p.position_m[2]); }
+
+/// What the tables depend on besides the rig: the fog and the ego's quantised bending.
+struct TableKey {
+  ipc::Environment fog;
+  int bendingSteps = 0;
+
+  bool operator==(const TableKey& o) const {
+    const ipc::Environment& a = fog;
+    const ipc::Environment& b = o.fog;
+    return bendingSteps == o.bendingSteps && a.visibility_m == b.visibility_m &&
+           a.extinction_per_m == b.extinction_per_m && a.albedo == b.albedo && a.phase == b.phase && a.g == b.g &&
+           a.droplet_diameter_um == b.droplet_diameter_um && a.ambient_cd_m2 == b.ambient_cd_m2;
+  }
+};
+
+std::uint32_t formatCode(const std::string& f) {
+  if (f == "rgba16f-linear") return FOGBEAM_FORMAT_RGBA16F_LINEAR;
+  if (f == "rgba16f-overlay") return FOGBEAM_FORMAT_RGBA16F_OVERLAY;
+  return FOGBEAM_FORMAT_RGBA8_SRGB;
+}
+
+}  // namespace
+
+Medium mediumFrom(const ipc::Environment& e) {
+  Medium m;
+  m.extinction_per_m = e.visibility_m > 0.0f ? extinctionFromVisibility(static_cast<double>(e.visibility_m))
+                                             : static_cast<double>(e.extinction_per_m);
+  m.albedo = static_cast<double>(e.albedo);
+  m.ambient_cd_m2 = static_cast<double>(e.ambient_cd_m2);
+  switch (e.phase) {
+    case ipc::PhaseCode::Isotropic: m.phase = IsotropicPhase{}; break;
+    case ipc::PhaseCode::HenyeyGreenstein: m.phase = makeHenyeyGreenstein(static_cast<double>(e.g)).value(); break;
+    case ipc::PhaseCode::FogMie: m.phase = makeFogMie(static_cast<double>(e.droplet_diameter_um)).value(); break;
+  }
+  return m;
+}
+
+ipc::Environment environmentFrom(const Medium& m) {
+  ipc::Environment e;
+  e.visibility_m = 0.0f;
+  e.extinction_per_m = static_cast<float>(m.extinction_per_m);
+  e.albedo = static_cast<float>(m.albedo);
+  e.ambient_cd_m2 = static_cast<float>(m.ambient_cd_m2);
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&m.phase)) {
+    e.phase = ipc::PhaseCode::HenyeyGreenstein;
+    e.g = static_cast<float>(hg->g);
+  } else if (const auto* mie = std::get_if<FogMiePhase>(&m.phase)) {
+    e.phase = ipc::PhaseCode::FogMie;
+    e.droplet_diameter_um = static_cast<float>(mie->diameter_um);
+  } else {
+    e.phase = ipc::PhaseCode::Isotropic;
+  }
+  return e;
+}
+
+struct ChannelRenderer::Impl {
+  const ServiceConfig* config = nullptr;
+  ChannelConfig channel;
+  Scene world;             ///< the world scene: world lamps only
+  GlSurfacePass* gl = nullptr;
+  AirlightMethod method = AirlightMethod::Accurate;
+  FastPathOptions fast;
+  SubsamplingOptions subsampling;
+  std::uint32_t format = FOGBEAM_FORMAT_RGBA8_SRGB;
+  Mat3 channelFromVehicle{1.0};  ///< the channel's orientation relative to the vehicle
+
+  std::unique_ptr<AirlightImageEvaluator> eval;  ///< tables for `current`
+  TableKey current;
+  std::future<Result<AirlightImageEvaluator>> building;  ///< tables for `next`, off the frame thread
+  TableKey next;
+
+  SurfaceBuffers surface;
+  AirlightImage air, trafficAir;
+
+  /// The frame's scene: world lamps, then the ego rig (in config order), for the ego pose, the
+  /// key's fog and bending.
+  Scene sceneFor(const ipc::EgoState& ego, const TableKey& key) const {
+    Scene s = world;
+    s.fog = mediumFrom(key.fog);
+    const Mat3 R = rotation(ego.pose);
+    const Vec3 O = position(ego.pose);
+    s.camera.position_m = O + R * (config->eye_m + channel.eye_offset_m);
+    s.camera.worldFromCamera = R * channelFromVehicle;
+    s.camera.fov_x = radians(channel.fov_x_deg);
+    s.camera.width = channel.width;
+    s.camera.height = channel.height;
+    const Mat3 bend = worldFromYawPitchRoll(radians(key.bendingSteps * kBendingStepDeg), 0.0, 0.0);
+    for (const RigLamp& r : config->ego.lamps) {
+      SceneLamp l = r.lamp;
+      l.mount = LampMount::Vehicle;
+      l.lamp.position_m = O + R * r.lamp.lamp.position_m;
+      // Bending swivels the lamp about the vehicle's vertical axis through the lamp.
+      l.lamp.worldFromLamp = R * (r.bending ? bend * r.lamp.lamp.worldFromLamp : r.lamp.lamp.worldFromLamp);
+      s.lamps.push_back(std::move(l));
+    }
+    return s;
+  }
+
+  Result<AirlightImageEvaluator> buildFor(const Scene& scene) const {
+    auto e = AirlightImageEvaluator::build(scene, method, {}, config->threads, fast);
+    if (!e) return e;
+    // Build the view tables now (they are built on first use): one throwaway frame over sky.
+    SurfaceBuffers sky;
+    sky.resize(scene.camera.width, scene.camera.height);
+    std::fill(sky.distance.begin(), sky.distance.end(), std::numeric_limits<float>::infinity());
+    AirlightImage scratch;
+    e->evaluate(scene, sky, subsampling, scratch);
+    return e;
+  }
+};
+
+ChannelRenderer::ChannelRenderer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ChannelRenderer::~ChannelRenderer() {
+  if (impl_ && impl_->building.valid()) impl_->building.wait();
+}
+
+const ChannelConfig& ChannelRenderer::channel() const { return impl_->channel; }
+std::uint32_t ChannelRenderer::shmFormat() const { return impl_->format; }
+
+Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceConfig& config, std::size_t channel,
+                                                                 const Scene& world, GlSurfacePass* gl) {
+  if (channel >= config.channels.size()) return Error{"no channel #" + std::to_string(channel)};
+  auto impl = std::make_unique<Impl>();
+  impl->config = &config;
+  impl->channel = config.channels[channel];
+  impl->world = world;
+  impl->world.lamps.clear();
+  for (const SceneLamp& l : world.lamps)
+    if (l.mount == LampMount::World) impl->world.lamps.push_back(l);
+  impl->gl = gl;
+  auto m = parseAirlightMethod(config.method);
+  if (!m) return m.error();
+  impl->method = *m;
+  impl->fast.view_table_step_deg = config.view_table_step_deg;
+  impl->subsampling.full = !config.subsampling;
+  impl->format = formatCode(impl->channel.format);
+  impl->channelFromVehicle = worldFromYawPitchRoll(radians(impl->channel.yaw_deg), radians(impl->channel.pitch_deg),
+                                                   radians(impl->channel.roll_deg));
+  return std::unique_ptr<ChannelRenderer>(new ChannelRenderer(std::move(impl)));
+}
+
+Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                               RenderedFrame& out) {
+  Impl& m = *impl_;
+  const auto t0 = Clock::now();
+  const ipc::EgoState& ego = state.ego.value;
+  const std::uint32_t lights =
+      state.lamps.stamp.valid ? state.lamps.value.lights : (ipc::light::kLowBeam | ipc::light::kPosition);
+
+  // The tables this state wants.
+  TableKey want;
+  want.fog = state.environment.stamp.valid ? state.environment.value : environmentFrom(m.config->fog);
+  const double bend = std::clamp(static_cast<double>(state.lamps.value.bending_deg), -m.config->bending_max_deg,
+                                 m.config->bending_max_deg);
+  const bool anyBending = std::any_of(m.config->ego.lamps.begin(), m.config->ego.lamps.end(),
+                                      [](const RigLamp& r) { return r.bending; });
+  want.bendingSteps = anyBending ? static_cast<int>(std::lround(bend / kBendingStepDeg)) : 0;
+
+  const auto tw = Clock::now();
+  if (m.building.valid() && (wait || m.building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
+    auto built = m.building.get();
+    if (!built) return built.error();
+    m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+    m.current = m.next;
+  }
+  if (!m.eval || !(m.current == want)) {
+    if (wait || !m.eval) {
+      auto built = m.buildFor(m.sceneFor(ego, want));
+      if (!built) return built.error();
+      m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+      m.current = want;
+    } else if (!m.building.valid()) {
+      m.next = want;
+      m.building = std::async(std::launch::async, [&m, scene = m.sceneFor(ego, want)] { return m.buildFor(scene); });
+    }
+  }
+  out.table_wait_ms = ms(tw, Clock::now());
+  out.pending = !(m.current == want);
+
+  Scene scene = m.sceneFor(ego, m.current);
+  if (Status s = m.eval->setLampPoses(scene); !s) return s;
+  Scene lit = scene;  // the lamps that are on, for the surface pass
+  lit.lamps.clear();
+  const std::size_t worldCount = m.world.lamps.size();
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const std::uint32_t bit = i < worldCount ? 0u : m.config->ego.lamps[i - worldCount].light_bit;
+    const bool on = bit == 0 || (lights & bit) != 0;
+    m.eval->setLampEnabled(i, on);
+    if (on) lit.lamps.push_back(scene.lamps[i]);
+  }
+  // Traffic: each live object's rig lamps that its light bits switch on, at its pose.
+  Scene traffic = scene;
+  traffic.lamps.clear();
+  std::uint32_t trafficCount = 0;
+  for (const ipc::TrafficEntry& e : state.traffic) {
+    if (!state.live(e, now)) continue;
+    ++trafficCount;
+    const VehicleRig* rig = m.config->rigFor(e.object.vehicle_class);
+    if (!rig) continue;
+    const Mat3 R = rotation(e.object.pose);
+    const Vec3 O = position(e.object.pose);
+    for (const RigLamp& r : rig->lamps) {
+      if (r.light_bit != 0 && (e.object.lights & r.light_bit) == 0) continue;
+      SceneLamp w = r.lamp;
+      w.mount = LampMount::World;
+      w.lamp.position_m = O + R * r.lamp.lamp.position_m;
+      w.lamp.worldFromLamp = R * r.lamp.lamp.worldFromLamp;
+      traffic.lamps.push_back(w);
+      lit.lamps.push_back(std::move(w));
+    }
+  }
+
+  const auto tS = Clock::now();
+  if (!m.gl || !m.gl->render(lit, m.surface)) renderSurfacesCpu(lit, m.surface);
+  const auto tA = Clock::now();
+  m.eval->evaluate(scene, m.surface, m.subsampling, m.air);
+  out.airlight_evaluated = m.air.evaluated;
+  out.traffic_evaluated = 0;
+  if (!traffic.lamps.empty()) {
+    // Traffic lamps move relative to the eye: no view tables, so measured profiles go per ray
+    // (the slow path, docs/airlight.md); per-lamp tables come from the evaluators' caches, the
+    // pool is the frame's.
+    auto te = AirlightImageEvaluator::build(traffic, m.method, AirlightOptions{}, m.eval->pool(), m.fast);
+    if (!te) return te.error();
+    te->evaluate(traffic, m.surface, m.subsampling, m.trafficAir);
+    out.traffic_evaluated = m.trafficAir.evaluated;
+    for (std::size_t k = 0; k < m.air.rgb.size(); ++k) m.air.rgb[k] += m.trafficAir.rgb[k];
+  }
+  const auto tC = Clock::now();
+  compositeFrame(scene.fog, m.surface, m.air, out.layers);
+  const std::size_t n = static_cast<std::size_t>(m.channel.width) * static_cast<std::size_t>(m.channel.height);
+  out.packed.resize(n * ipc::bytesPerPixel(m.format));
+  if (m.format == FOGBEAM_FORMAT_RGBA8_SRGB) {
+    packRgba8Srgb(out.layers.composite.data(), n, m.channel.exposure_ev, reinterpret_cast<std::uint8_t*>(out.packed.data()));
+  } else if (m.format == FOGBEAM_FORMAT_RGBA16F_LINEAR) {
+    packRgba16F(out.layers.composite.data(), nullptr, 1.0f, n, reinterpret_cast<std::uint16_t*>(out.packed.data()));
+  } else {
+    packRgba16F(out.layers.overlay.data(), out.layers.transmittance.data(), 1.0f, n,
+                reinterpret_cast<std::uint16_t*>(out.packed.data()));
+  }
+  const auto tE = Clock::now();
+
+  ipc::FrameMeta& meta = out.meta;
+  meta = ipc::FrameMeta{};
+  meta.sim_time_s = state.ego.stamp.sim_time_s;
+  meta.position_m = {scene.camera.position_m.x, scene.camera.position_m.y, scene.camera.position_m.z};
+  meta.yaw_deg = ego.pose.yaw_deg;
+  meta.pitch_deg = ego.pose.pitch_deg;
+  meta.roll_deg = ego.pose.roll_deg;
+  meta.lights = lights;
+  meta.ego_sequence = state.ego.stamp.sequence;
+  meta.lamp_sequence = state.lamps.stamp.sequence;
+  meta.environment_sequence = state.environment.stamp.sequence;
+  meta.traffic_count = trafficCount;
+  meta.surface_ms = ms(tS, tA);
+  meta.airlight_ms = ms(tA, tC);
+  meta.composite_ms = ms(tC, tE);
+  meta.total_ms = ms(t0, tE);
+  meta.fov_x_deg = static_cast<float>(m.channel.fov_x_deg);
+  return Ok{};
+}
+
+}  // namespace fogbeam::plugin

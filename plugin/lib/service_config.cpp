@@ -1,0 +1,408 @@
+// fogbeam — the service configuration (service_config.hpp, docs/service.md).
+#include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/plugin/service_config.hpp>
+#include <fogbeam/scene/toml_config.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include "builtin_service_config.hpp"  // generated: kBuiltinServiceConfig (config/service/default.toml)
+
+namespace fogbeam::plugin {
+
+namespace {
+
+namespace fs = std::filesystem;
+using config::KeySpec;
+using config::Range;
+using config::Section;
+
+constexpr std::array kTopKeys{
+    KeySpec{"world", "table [world]: scene, scenario, scenario_loop"},
+    KeySpec{"fog", "table [fog]: scene [fog] keys, the fog until a host sends one"},
+    KeySpec{"render", "table [render]: method, subsampling, view_table_step_deg, surface, threads"},
+    KeySpec{"timing", "table [timing]: mode, rate_hz"},
+    KeySpec{"status", "table [status]: interval_s, udp_port"},
+    KeySpec{"input", "table [input]: [input.udp], [input.can]"},
+    KeySpec{"channel", "array of tables [[channel]]: the output views"},
+    KeySpec{"ego", "table [ego]: eye_m, bending_max_deg, [[ego.lamp]]"},
+    KeySpec{"traffic_class", "array of tables [[traffic_class]]: class, name, [[traffic_class.lamp]]"},
+};
+constexpr std::array kWorldKeys{
+    KeySpec{"scene", "string, path: the world's scene file (its world lamps, planes, glTF)"},
+    KeySpec{"scenario", "string, path, or \"\" for none: played when no host sends"},
+    KeySpec{"scenario_loop", "boolean, default true"},
+};
+constexpr std::array kRenderKeys{
+    KeySpec{"method", "\"accurate\" | \"seed\" | \"reference\""},
+    KeySpec{"subsampling", "boolean"},
+    KeySpec{"view_table_step_deg", "number, deg, [0.05, 5]"},
+    KeySpec{"surface", "\"auto\" | \"gl\" | \"cpu\""},
+    KeySpec{"threads", "integer, 0 = every core"},
+};
+constexpr std::array kTimingKeys{
+    KeySpec{"mode", "\"free-running\" | \"lock-step\""},
+    KeySpec{"rate_hz", "number, Hz, (0, 1000]"},
+};
+constexpr std::array kStatusKeys{
+    KeySpec{"interval_s", "number, s, [0.1, 3600]"},
+    KeySpec{"udp_port", "integer, 0 = off"},
+};
+constexpr std::array kInputKeys{
+    KeySpec{"udp", "table [input.udp]"},
+    KeySpec{"can", "table [input.can]"},
+};
+constexpr std::array kUdpKeys{
+    KeySpec{"bind", "string, IPv4 address"},
+    KeySpec{"port", "integer, [0, 65535]"},
+    KeySpec{"multicast", "string, IPv4 group or \"\""},
+    KeySpec{"allow", "array of IPv4 address strings; empty = any"},
+    KeySpec{"traffic_timeout_s", "number, s, (0, 60]"},
+};
+constexpr std::array kCanKeys{
+    KeySpec{"source", "\"none\" | \"interface\" | \"candump\" | \"cannelloni\""},
+    KeySpec{"interface", "string: SocketCAN interface (source = \"interface\")"},
+    KeySpec{"candump", "string, path: candump -L log (source = \"candump\")"},
+    KeySpec{"candump_speed", "number, replay speed factor, (0, 100]"},
+    KeySpec{"cannelloni_port", "integer, UDP port (source = \"cannelloni\")"},
+    KeySpec{"mapping", "string, path: the CAN mapping file (docs/can.md)"},
+};
+constexpr std::array kChannelKeys{
+    KeySpec{"name", "string, required, unique: segment /fogbeam.<name>"},
+    KeySpec{"width", "integer, px, [1, 16384]"},
+    KeySpec{"height", "integer, px, [1, 16384]"},
+    KeySpec{"fov_x_deg", "number, deg, (0, 180)"},
+    KeySpec{"eye_offset_m", "[x, y, z], m, from the driver's eye"},
+    KeySpec{"yaw_deg", "number, deg"},
+    KeySpec{"pitch_deg", "number, deg"},
+    KeySpec{"roll_deg", "number, deg"},
+    KeySpec{"format", "\"rgba8-srgb\" | \"rgba16f-linear\" | \"rgba16f-overlay\""},
+    KeySpec{"distance", "boolean"},
+    KeySpec{"exposure_ev", "number, EV"},
+};
+constexpr std::array kEgoKeys{
+    KeySpec{"eye_m", "[x, y, z], m, vehicle frame"},
+    KeySpec{"bending_max_deg", "number, deg, [0, 45]"},
+    KeySpec{"lamp", "array of tables [[ego.lamp]]"},
+};
+constexpr std::array kClassKeys{
+    KeySpec{"class", "integer, [0, 65535], required, unique"},
+    KeySpec{"name", "string"},
+    KeySpec{"lamp", "array of tables [[traffic_class.lamp]]"},
+};
+constexpr std::array kRigLampExtraKeys{
+    KeySpec{"role", "string, required: low-beam | high-beam | front-fog | rear-fog | position | brake | drl | always"},
+    KeySpec{"bending", "boolean, ego only, default false"},
+};
+
+constexpr std::array<std::pair<std::string_view, std::uint32_t>, 8> kRoles{{
+    {"low-beam", ipc::light::kLowBeam},
+    {"high-beam", ipc::light::kHighBeam},
+    {"front-fog", ipc::light::kFrontFog},
+    {"rear-fog", ipc::light::kRearFog},
+    {"position", ipc::light::kPosition},
+    {"brake", ipc::light::kBrake},
+    {"drl", ipc::light::kDrl},
+    {"always", 0u},
+}};
+
+std::string pathOf(const Section& s, std::string_view key, const std::string& baseDir, bool mustExist) {
+  const std::string given = s.string(key, "a path");
+  if (given.empty()) return {};
+  const std::string path = config::resolvePath(baseDir, given);
+  if (mustExist) {
+    if (std::string problem = config::checkFile(path); !problem.empty()) s.failAt(*s.find(key), key, problem);
+  }
+  return path;
+}
+
+std::uint16_t portOf(const Section& s, std::string_view key, std::uint16_t fallback) {
+  return static_cast<std::uint16_t>(s.integer(key, 0, 65535, fallback));
+}
+
+/// A lamp table as TOML text with its profile path resolved (for --print-config).
+std::string definitionOf(const toml::table& t, const std::string& baseDir) {
+  toml::table copy = t;
+  if (const auto* p = copy.get_as<std::string>("profile")) {
+    const std::string v = p->get();
+    if (v != "isotropic" && v != "spot") copy.insert_or_assign("profile", config::resolvePath(baseDir, v));
+  }
+  std::ostringstream out;
+  out << toml::toml_formatter(copy);
+  return out.str();
+}
+
+VehicleRig parseRig(const Section& s, const std::string& baseDir, bool ego) {
+  VehicleRig rig;
+  config::ProfileCache cache;
+  std::set<std::string, std::less<>> names;
+  s.forEachEntry("lamp", [&](const toml::table& t, std::string label, std::size_t ordinal) {
+    const Section l(s.file(), t, std::move(label));
+    RigLamp r;
+    r.lamp = config::parseLamp(l, ordinal, baseDir, cache, kRigLampExtraKeys);
+    l.forbid("mount", "rig lamps are always mounted on their vehicle");
+    r.lamp.mount = LampMount::Vehicle;
+    std::array<std::string_view, kRoles.size()> roles{};
+    for (std::size_t i = 0; i < kRoles.size(); ++i) roles[i] = kRoles[i].first;
+    r.role = l.choice("role", roles, "");
+    if (r.role.empty()) l.missing("role", "one of low-beam, high-beam, front-fog, rear-fog, position, brake, drl, always");
+    r.light_bit = std::find_if(kRoles.begin(), kRoles.end(), [&](const auto& p) { return p.first == r.role; })->second;
+    if (!ego) l.forbid("bending", "only the ego's lamps bend");
+    r.bending = l.boolean("bending", false);
+    if (!names.insert(r.lamp.name).second) {
+      l.fail(l.line(), "name", "expected a unique lamp name, found " + config::inQuotes(r.lamp.name) + " again");
+    }
+    r.definition = definitionOf(t, baseDir);
+    rig.lamps.push_back(std::move(r));
+  });
+  return rig;
+}
+
+void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& name, const std::string& baseDir) {
+  const Section top(name, root, "");
+  top.checkKeys(kTopKeys);
+  if (const toml::table* t = top.optTable("world")) {
+    const Section s(name, *t, "[world]");
+    s.checkKeys(kWorldKeys);
+    if (s.find("scene")) c.scene_path = pathOf(s, "scene", baseDir, true);
+    if (s.find("scenario")) c.scenario_path = pathOf(s, "scenario", baseDir, true);
+    c.scenario_loop = s.boolean("scenario_loop", c.scenario_loop);
+  }
+  if (const toml::table* t = top.optTable("fog")) {
+    const Section s(name, *t, "[fog]");
+    c.fog = config::parseFog(s);
+    std::ostringstream out;
+    out << toml::toml_formatter(*t);
+    c.fog_text = out.str();
+  }
+  if (const toml::table* t = top.optTable("render")) {
+    const Section s(name, *t, "[render]");
+    s.checkKeys(kRenderKeys);
+    const std::array<std::string_view, 3> methods{"accurate", "seed", "reference"};
+    c.method = s.choice("method", methods, c.method);
+    c.subsampling = s.boolean("subsampling", c.subsampling);
+    c.view_table_step_deg = s.number("view_table_step_deg", Range{0.05, 5.0}, c.view_table_step_deg);
+    const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
+    c.surface = s.choice("surface", surfaces, c.surface);
+    c.threads = static_cast<unsigned>(s.integer("threads", 0, 256, c.threads));
+  }
+  if (const toml::table* t = top.optTable("timing")) {
+    const Section s(name, *t, "[timing]");
+    s.checkKeys(kTimingKeys);
+    const std::array<std::string_view, 2> modes{"free-running", "lock-step"};
+    c.lock_step = s.choice("mode", modes, c.lock_step ? "lock-step" : "free-running") == "lock-step";
+    c.rate_hz = s.number("rate_hz", Range{0.0, 1000.0, true, false}, c.rate_hz);
+  }
+  if (const toml::table* t = top.optTable("status")) {
+    const Section s(name, *t, "[status]");
+    s.checkKeys(kStatusKeys);
+    c.status_interval_s = s.number("interval_s", Range{0.1, 3600.0}, c.status_interval_s);
+    c.status_udp_port = portOf(s, "udp_port", c.status_udp_port);
+  }
+  if (const toml::table* in = top.optTable("input")) {
+    const Section is(name, *in, "[input]");
+    is.checkKeys(kInputKeys);
+    if (const toml::table* t = is.optTable("udp")) {
+      const Section s(name, *t, "[input.udp]");
+      s.checkKeys(kUdpKeys);
+      c.udp_bind = s.optString("bind").value_or(c.udp_bind);
+      c.udp_port = portOf(s, "port", c.udp_port);
+      c.udp_multicast = s.optString("multicast").value_or(c.udp_multicast);
+      if (auto allow = s.optStrings("allow")) c.udp_allow = *allow;
+      c.traffic_timeout_s = s.number("traffic_timeout_s", Range{0.0, 60.0, true, false}, c.traffic_timeout_s);
+    }
+    if (const toml::table* t = is.optTable("can")) {
+      const Section s(name, *t, "[input.can]");
+      s.checkKeys(kCanKeys);
+      const std::array<std::string_view, 4> sources{"none", "interface", "candump", "cannelloni"};
+      c.can_source = s.choice("source", sources, c.can_source);
+      c.can_interface = s.optString("interface").value_or(c.can_interface);
+      if (s.find("candump")) c.can_candump = pathOf(s, "candump", baseDir, true);
+      c.can_candump_speed = s.number("candump_speed", Range{0.0, 100.0, true, false}, c.can_candump_speed);
+      c.can_cannelloni_port = portOf(s, "cannelloni_port", c.can_cannelloni_port);
+      if (s.find("mapping")) c.can_mapping_path = pathOf(s, "mapping", baseDir, true);
+    }
+  }
+  if (top.find("channel")) {
+    c.channels.clear();
+    top.forEachEntry("channel", [&](const toml::table& t, std::string label, std::size_t) {
+      const Section s(name, t, std::move(label));
+      s.checkKeys(kChannelKeys);
+      ChannelConfig ch;
+      ch.name = s.string("name", "a channel name");
+      const bool nameOk = !ch.name.empty() && ch.name.size() <= 200 &&
+                          std::all_of(ch.name.begin(), ch.name.end(), [](unsigned char ch_) {
+                            return std::isalnum(ch_) || ch_ == '_' || ch_ == '-' || ch_ == '.';
+                          });
+      if (!nameOk) s.failAt(*s.find("name"), "name", "expected letters, digits, '_', '-' or '.', found " + config::inQuotes(ch.name));
+      ch.width = static_cast<int>(s.integer("width", 1, 16384, ch.width));
+      ch.height = static_cast<int>(s.integer("height", 1, 16384, ch.height));
+      ch.fov_x_deg = s.number("fov_x_deg", Range{0.0, 180.0, true, true}, ch.fov_x_deg);
+      ch.eye_offset_m = s.optVec3("eye_offset_m").value_or(ch.eye_offset_m);
+      ch.yaw_deg = s.number("yaw_deg", config::kAnyFinite, 0.0);
+      ch.pitch_deg = s.number("pitch_deg", config::kAnyFinite, 0.0);
+      ch.roll_deg = s.number("roll_deg", config::kAnyFinite, 0.0);
+      const std::array<std::string_view, 3> formats{"rgba8-srgb", "rgba16f-linear", "rgba16f-overlay"};
+      ch.format = s.choice("format", formats, ch.format);
+      ch.distance = s.boolean("distance", false);
+      ch.exposure_ev = s.number("exposure_ev", Range{-20.0, 20.0}, 0.0);
+      for (const ChannelConfig& other : c.channels) {
+        if (other.name == ch.name) s.failAt(*s.find("name"), "name", "expected a unique name, found " + config::inQuotes(ch.name) + " again");
+      }
+      c.channels.push_back(ch);
+    });
+  }
+  if (const toml::table* t = top.optTable("ego")) {
+    const Section s(name, *t, "[ego]");
+    s.checkKeys(kEgoKeys);
+    c.eye_m = s.optVec3("eye_m").value_or(c.eye_m);
+    c.bending_max_deg = s.number("bending_max_deg", Range{0.0, 45.0}, c.bending_max_deg);
+    if (s.find("lamp")) c.ego = parseRig(s, baseDir, true);
+    c.ego.name = "ego";
+  }
+  if (top.find("traffic_class")) {
+    c.traffic.clear();
+    top.forEachEntry("traffic_class", [&](const toml::table& t, std::string label, std::size_t) {
+      const Section s(name, t, std::move(label));
+      s.checkKeys(kClassKeys);
+      const auto cls = static_cast<std::uint16_t>(s.integer("class", 0, 65535));
+      VehicleRig rig = parseRig(s, baseDir, false);
+      rig.name = s.optString("name").value_or("class " + std::to_string(cls));
+      if (!c.traffic.emplace(cls, std::move(rig)).second) {
+        s.failAt(*s.find("class"), "class", "expected a unique class, found " + std::to_string(cls) + " again");
+      }
+    });
+  }
+}
+
+std::string quoted(const std::string& s) {
+  std::ostringstream out;
+  out << toml::value<std::string>(s);
+  return out.str();
+}
+
+}  // namespace
+
+const VehicleRig* ServiceConfig::rigFor(std::uint16_t vehicleClass) const {
+  if (auto it = traffic.find(vehicleClass); it != traffic.end()) return &it->second;
+  if (auto it = traffic.find(0); it != traffic.end()) return &it->second;
+  return nullptr;
+}
+
+std::string_view builtinServiceConfig() { return kBuiltinServiceConfig; }
+
+std::string builtinConfigDir() {
+  if (const char* env = std::getenv("FOGBEAM_CONFIG_DIR"); env && *env) return env;
+  return FOGBEAM_BUILTIN_CONFIG_DIR;
+}
+
+Status applyServiceLayer(ServiceConfig& c, std::string_view text, const std::string& name, const std::string& baseDir) {
+  auto r = config::parseTomlFile<Ok>(text, name, [&](const toml::table& root) {
+    applyRoot(c, root, name, baseDir);
+    return Ok{};
+  });
+  if (!r) return r.error();
+  c.layers.push_back(name);
+  return Ok{};
+}
+
+Result<ServiceConfig> loadServiceConfig(const std::string& file, const std::vector<std::string>& settings) {
+  ServiceConfig c;
+  if (Status s = applyServiceLayer(c, builtinServiceConfig(), "built-in service config", builtinConfigDir()); !s) {
+    return Error{s.error().message + " (FOGBEAM_CONFIG_DIR or the build's config/ directory must hold the shipped files)"};
+  }
+  if (!file.empty()) {
+    auto text = readTextFile(file);
+    if (!text) return text.error();
+    if (Status s = applyServiceLayer(c, *text, file, fs::path(file).parent_path().string()); !s) return s.error();
+  }
+  for (const std::string& kv : settings) {
+    const std::size_t eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      return Error{"--set " + kv + ": expected key.path=value (value in TOML syntax, e.g. timing.rate_hz=60)"};
+    }
+    // "a.b.c=v" is the TOML dotted-key line "a.b.c = v"; paths resolve against the working
+    // directory. An array-of-tables entry cannot be set this way (use a file).
+    if (Status s = applyServiceLayer(c, kv.substr(0, eq) + " = " + kv.substr(eq + 1) + "\n", "--set " + kv,
+                                     fs::current_path().string());
+        !s) {
+      return s.error();
+    }
+  }
+  if (Status s = validate(c); !s) return s.error();
+  return c;
+}
+
+Status validate(const ServiceConfig& c) {
+  const std::string where = "service config (" + (c.layers.empty() ? std::string("?") : c.layers.back()) + ")";
+  if (c.scene_path.empty()) return Error{where + ": [world] scene: missing"};
+  if (c.channels.empty()) return Error{where + ": no [[channel]]: at least one output view is needed"};
+  for (const ChannelConfig& ch : c.channels) {
+    if (ch.format == "rgba16f-overlay" && ch.exposure_ev != 0.0) {
+      return Error{where + ": [[channel]] " + ch.name + ": exposure_ev applies to rgba8-srgb only"};
+    }
+  }
+  if (c.ego.lamps.empty()) return Error{where + ": [ego] has no [[ego.lamp]]"};
+  if (!c.traffic.contains(0)) return Error{where + ": no [[traffic_class]] with class = 0 (the default rig)"};
+  if (c.can_source != "none" && c.can_mapping_path.empty()) {
+    return Error{where + ": [input.can] source = \"" + c.can_source + "\" needs mapping (a CAN mapping file)"};
+  }
+  if (c.can_source == "interface" && c.can_interface.empty()) return Error{where + ": [input.can] interface: missing"};
+  if (c.can_source == "candump" && c.can_candump.empty()) return Error{where + ": [input.can] candump: missing"};
+  if (c.can_source == "cannelloni" && c.can_cannelloni_port == 0) {
+    return Error{where + ": [input.can] cannelloni_port: missing"};
+  }
+  if (c.status_udp_port != 0 && c.status_udp_port == c.udp_port) {
+    return Error{where + ": [status] udp_port equals [input.udp] port " + std::to_string(c.udp_port)};
+  }
+  return Ok{};
+}
+
+std::string toToml(const ServiceConfig& c) {
+  std::ostringstream o;
+  auto vec = [](const Vec3& v) {
+    return "[" + config::formatNumber(v.x) + ", " + config::formatNumber(v.y) + ", " + config::formatNumber(v.z) + "]";
+  };
+  auto num = [](double x) { return config::formatNumber(x); };
+  auto flag = [](bool b) { return b ? "true" : "false"; };
+  o << "# fogbeam serve: effective configuration, from these layers in order:\n";
+  for (const std::string& l : c.layers) o << "#   " << l << "\n";
+  o << "\n[world]\nscene = " << quoted(c.scene_path) << "\nscenario = " << quoted(c.scenario_path)
+    << "\nscenario_loop = " << flag(c.scenario_loop) << "\n";
+  o << "\n[fog]\n" << c.fog_text << "\n";
+  o << "\n[render]\nmethod = " << quoted(c.method) << "\nsubsampling = " << flag(c.subsampling)
+    << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nsurface = " << quoted(c.surface)
+    << "\nthreads = " << c.threads << "\n";
+  o << "\n[timing]\nmode = " << quoted(c.lock_step ? "lock-step" : "free-running") << "\nrate_hz = " << num(c.rate_hz)
+    << "\n";
+  o << "\n[status]\ninterval_s = " << num(c.status_interval_s) << "\nudp_port = " << c.status_udp_port << "\n";
+  o << "\n[input.udp]\nbind = " << quoted(c.udp_bind) << "\nport = " << c.udp_port
+    << "\nmulticast = " << quoted(c.udp_multicast) << "\nallow = [";
+  for (std::size_t i = 0; i < c.udp_allow.size(); ++i) o << (i ? ", " : "") << quoted(c.udp_allow[i]);
+  o << "]\ntraffic_timeout_s = " << num(c.traffic_timeout_s) << "\n";
+  o << "\n[input.can]\nsource = " << quoted(c.can_source) << "\ninterface = " << quoted(c.can_interface)
+    << "\ncandump = " << quoted(c.can_candump) << "\ncandump_speed = " << num(c.can_candump_speed)
+    << "\ncannelloni_port = " << c.can_cannelloni_port << "\nmapping = " << quoted(c.can_mapping_path) << "\n";
+  for (const ChannelConfig& ch : c.channels) {
+    o << "\n[[channel]]\nname = " << quoted(ch.name) << "\nwidth = " << ch.width << "\nheight = " << ch.height
+      << "\nfov_x_deg = " << num(ch.fov_x_deg) << "\neye_offset_m = " << vec(ch.eye_offset_m)
+      << "\nyaw_deg = " << num(ch.yaw_deg) << "\npitch_deg = " << num(ch.pitch_deg) << "\nroll_deg = " << num(ch.roll_deg)
+      << "\nformat = " << quoted(ch.format) << "\ndistance = " << flag(ch.distance)
+      << "\nexposure_ev = " << num(ch.exposure_ev) << "\n";
+  }
+  o << "\n[ego]\neye_m = " << vec(c.eye_m) << "\nbending_max_deg = " << num(c.bending_max_deg) << "\n";
+  for (const RigLamp& l : c.ego.lamps) o << "\n[[ego.lamp]]\n" << l.definition << "\n";
+  for (const auto& [cls, rig] : c.traffic) {
+    o << "\n[[traffic_class]]\nclass = " << cls << "\nname = " << quoted(rig.name) << "\n";
+    for (const RigLamp& l : rig.lamps) o << "\n[[traffic_class.lamp]]\n" << l.definition << "\n";
+  }
+  return o.str();
+}
+
+}  // namespace fogbeam::plugin
