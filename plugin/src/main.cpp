@@ -1,5 +1,5 @@
-// fogbeam — the single executable. Subcommands: validate, profile (issue 2), render (issue 3);
-// bench, serve, replay, view, send come with later issues.
+// fogbeam — the single executable. Subcommands: validate, profile (issue 2), render, bench
+// (issue 3), serve, replay, view, send (issue 5).
 #include "commands.hpp"
 
 #include <CLI/CLI.hpp>
@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   fogbeam::cli::addRenderCommand(app, exitCode);
   fogbeam::cli::addBenchCommand(app, exitCode);
   fogbeam::cli::addServeCommand(app, exitCode);
+  fogbeam::cli::addReplayCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
 }

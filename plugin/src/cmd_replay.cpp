@@ -1,0 +1,249 @@
+// `fogbeam replay` (issue 5): renders a scenario (docs/scenario.md) headless, frame by frame at a
+// fixed simulation rate, through the same ChannelRenderer as `fogbeam serve`, with the rigs and
+// view of a service configuration (built-in default or --config). Writes frame_NNNNN.exr (the
+// layers of `fogbeam render`) and/or frame_NNNNN.png, a contact sheet and timing.json.
+//
+// Deterministic: simulation time is k / fps, never the wall clock; tables are awaited (no
+// background builds); so the same scenario and configuration give the same frames, byte for byte.
+#include "commands.hpp"
+#include "exr_writer.hpp"
+#include "png_writer.hpp"
+
+#include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/plugin/frame_renderer.hpp>
+#include <fogbeam/plugin/scenario.hpp>
+#include <fogbeam/plugin/service_config.hpp>
+#include <fogbeam/render/frame.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fogbeam::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct ReplayOptions {
+  std::string scenario;
+  std::string out;
+  double fps = 10.0;
+  std::string method;
+  std::string config;
+  std::vector<std::string> set;
+  std::string channel;
+  bool exr = true;
+  bool png = true;
+  bool full = false;
+  double exposure = 0.0;
+  double start_s = 0.0;
+  double end_s = -1.0;
+  int sheetColumns = 6;
+  int sheetWidth = 1536;
+  std::string surface;
+};
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+png::RgbImage toImage(const FrameLayers& l, double exposure) {
+  const auto bytes = toneMapSrgb8(l.composite, exposure);
+  png::RgbImage img(l.width, l.height);
+  for (int j = 0; j < l.height; ++j)
+    for (int i = 0; i < l.width; ++i) {
+      const std::size_t k = 3 * (static_cast<std::size_t>(j) * static_cast<std::size_t>(l.width) + static_cast<std::size_t>(i));
+      img.set(i, j, {bytes[k], bytes[k + 1], bytes[k + 2]});
+    }
+  return img;
+}
+
+/// Box-filtered copy of `src` into the cell at (x0, y0) of size w × h of `sheet`.
+void paste(const png::RgbImage& src, png::RgbImage& sheet, int x0, int y0, int w, int h) {
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int sx0 = x * src.width() / w, sx1 = std::max(sx0 + 1, (x + 1) * src.width() / w);
+      const int sy0 = y * src.height() / h, sy1 = std::max(sy0 + 1, (y + 1) * src.height() / h);
+      std::array<int, 3> sum{};
+      int n = 0;
+      for (int sy = sy0; sy < sy1; ++sy)
+        for (int sx = sx0; sx < sx1; ++sx) {
+          const png::Rgb c = src.get(sx, sy);
+          for (int k = 0; k < 3; ++k) sum[static_cast<std::size_t>(k)] += c[static_cast<std::size_t>(k)];
+          ++n;
+        }
+      png::Rgb c{};
+      for (std::size_t k = 0; k < 3; ++k) c[k] = static_cast<std::uint8_t>(sum[k] / n);
+      sheet.set(x0 + x, y0 + y, c);
+    }
+}
+
+int fail(const std::string& what) {
+  std::fprintf(stderr, "fogbeam replay: %s\n", what.c_str());
+  return 2;
+}
+
+int run(const ReplayOptions& o) {
+  auto scenario = plugin::loadScenario(o.scenario);
+  if (!scenario) return fail(scenario.error().message);
+  std::vector<std::string> settings = o.set;
+  if (!o.method.empty()) settings.push_back("render.method=\"" + o.method + "\"");
+  if (o.full) settings.push_back("render.subsampling=false");
+  if (!o.surface.empty()) settings.push_back("render.surface=\"" + o.surface + "\"");
+  settings.push_back("world.scenario=\"\"");
+  auto cfg = plugin::loadServiceConfig(o.config, settings);
+  if (!cfg) return fail(cfg.error().message);
+  std::size_t channel = 0;
+  if (!o.channel.empty()) {
+    const auto it = std::find_if(cfg->channels.begin(), cfg->channels.end(),
+                                 [&](const plugin::ChannelConfig& c) { return c.name == o.channel; });
+    if (it == cfg->channels.end()) return fail("--channel " + o.channel + ": no such channel in the service config");
+    channel = static_cast<std::size_t>(it - cfg->channels.begin());
+  }
+  auto world = loadScene(scenario->scene_path);
+  if (!world) return fail(world.error().message);
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) return fail(o.out + ": " + ec.message());
+
+  std::unique_ptr<GlSurfacePass> gl;
+  if (cfg->surface != "cpu") {
+    if (auto g = GlSurfacePass::create()) gl = std::move(g).value();
+    else if (cfg->surface == "gl") return fail(g.error().message);
+    else std::fprintf(stderr, "fogbeam replay: GL unavailable (%s); CPU planes only\n", g.error().message.c_str());
+  }
+  auto renderer = plugin::ChannelRenderer::create(*cfg, channel, *world, gl.get());
+  if (!renderer) return fail(renderer.error().message);
+
+  const double end = o.end_s >= 0.0 ? std::min(o.end_s, scenario->duration_s) : scenario->duration_s;
+  const auto count = static_cast<std::size_t>(std::floor((end - o.start_s) * o.fps + 1e-9)) + 1;
+  const plugin::ChannelConfig& ch = cfg->channels[channel];
+  std::printf("fogbeam replay: %s (%s), %.2f s at %.3g fps = %zu frames, %dx%d, method %s, into %s\n",
+              scenario->name.c_str(), o.scenario.c_str(), end - o.start_s, o.fps, count, ch.width, ch.height,
+              cfg->method.c_str(), o.out.c_str());
+  std::fflush(stdout);
+
+  ipc::StateStore store;
+  std::uint32_t sequence = 1;
+  plugin::RenderedFrame frame;
+  std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs;
+  std::vector<png::RgbImage> thumbs;
+  const bool tty = ::isatty(STDERR_FILENO) != 0;
+  const auto t0 = Clock::now();
+  std::ofstream timeline(fs::path(o.out) / "frames.csv");
+  timeline << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px\n";
+  for (std::size_t k = 0; k < count; ++k) {
+    const double t = o.start_s + static_cast<double>(k) / o.fps;
+    const auto now = Clock::now();
+    plugin::applyState(plugin::evaluate(*scenario, t), store, sequence, now);
+    const auto snap = store.snapshot();
+    const auto a = Clock::now();
+    if (Status s = (*renderer)->render(*snap, now, true, frame); !s) return fail(s.error().message);
+    const auto b = Clock::now();
+    char name[64];
+    std::snprintf(name, sizeof name, "frame_%05zu", k);
+    const fs::path base = fs::path(o.out) / name;
+    if (o.exr) {
+      if (Status s = exr::writeFrameLayers(frame.layers, base.string() + ".exr"); !s) return fail(s.error().message);
+    }
+    png::RgbImage img = toImage(frame.layers, o.exposure);
+    if (o.png) {
+      if (Status s = png::writePng(img, base.string() + ".png"); !s) return fail(s.error().message);
+    }
+    thumbs.push_back(std::move(img));
+    const auto c = Clock::now();
+    const double total = std::chrono::duration<double, std::milli>(b - a).count();
+    totalMs.push_back(total);
+    waitMs.push_back(frame.table_wait_ms);
+    surfaceMs.push_back(frame.meta.surface_ms);
+    airMs.push_back(frame.meta.airlight_ms);
+    writeMs.push_back(std::chrono::duration<double, std::milli>(c - b).count());
+    timeline << k << "," << t << "," << plugin::lightNames(frame.meta.lights) << "," << frame.meta.traffic_count << ","
+             << total << "," << frame.table_wait_ms << "," << frame.meta.surface_ms << "," << frame.meta.airlight_ms
+             << "," << frame.airlight_evaluated << "\n";
+    // Progress: a bar redrawn in place on a terminal, a line per 10 % in logs.
+    const double done = static_cast<double>(k + 1) / static_cast<double>(count);
+    const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
+    const double eta = elapsed / done - elapsed;
+    if (tty) {
+      const int bars = static_cast<int>(done * 30);
+      std::fprintf(stderr, "\r  [%-30s] %zu/%zu  t = %6.2f s  %6.0f ms/frame  ETA %4.0f s ", std::string(static_cast<std::size_t>(bars), '#').c_str(),
+                   k + 1, count, t, total, eta);
+    } else if (k + 1 == count || (10 * (k + 1)) / count != (10 * k) / count) {
+      std::fprintf(stderr, "  %3.0f %%  %zu/%zu frames, t = %.2f s, last frame %.0f ms, ETA %.0f s\n", 100 * done, k + 1,
+                   count, t, total, eta);
+    }
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  // Contact sheet: every frame, `sheetColumns` per row, box-filtered to the cell size.
+  const int cols = std::max(1, std::min(o.sheetColumns, static_cast<int>(thumbs.size())));
+  const int rows = static_cast<int>((thumbs.size() + static_cast<std::size_t>(cols) - 1) / static_cast<std::size_t>(cols));
+  const int cellW = std::max(8, o.sheetWidth / cols - 4);
+  const int cellH = std::max(4, cellW * ch.height / ch.width);
+  png::RgbImage sheet(cols * (cellW + 4) + 4, rows * (cellH + 4) + 4, {40, 40, 40});
+  for (std::size_t k = 0; k < thumbs.size(); ++k) {
+    const int col = static_cast<int>(k) % cols, row = static_cast<int>(k) / cols;
+    paste(thumbs[k], sheet, 4 + col * (cellW + 4), 4 + row * (cellH + 4), cellW, cellH);
+  }
+  const std::string sheetPath = (fs::path(o.out) / "contact_sheet.png").string();
+  if (Status s = png::writePng(sheet, sheetPath); !s) return fail(s.error().message);
+
+  const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::printf("  frames          %zu in %.1f s (%.2f frames/s, writing included)\n", count, wall,
+              static_cast<double>(count) / wall);
+  std::printf("  frame time      median %.1f ms, p95 %.1f ms, max %.1f ms\n", percentile(totalMs, 0.5),
+              percentile(totalMs, 0.95), percentile(totalMs, 1.0));
+  std::printf("  of which        table builds (fog/rig changes) median %.1f ms, max %.1f ms; surface median %.1f ms; "
+              "airlight median %.1f ms\n",
+              percentile(waitMs, 0.5), percentile(waitMs, 1.0), percentile(surfaceMs, 0.5), percentile(airMs, 0.5));
+  std::printf("  writing         median %.1f ms per frame\n", percentile(writeMs, 0.5));
+  std::printf("  wrote           %s/frame_*.%s, frames.csv, %s\n", o.out.c_str(),
+              o.exr && o.png ? "{exr,png}" : o.exr ? "exr" : "png", sheetPath.c_str());
+  std::ofstream json(fs::path(o.out) / "timing.json");
+  json << "{\"scenario\": \"" << scenario->name << "\", \"frames\": " << count << ", \"fps\": " << o.fps
+       << ", \"width\": " << ch.width << ", \"height\": " << ch.height << ", \"method\": \"" << cfg->method
+       << "\", \"wall_s\": " << wall << ", \"frame_ms_median\": " << percentile(totalMs, 0.5)
+       << ", \"frame_ms_p95\": " << percentile(totalMs, 0.95) << ", \"table_ms_max\": " << percentile(waitMs, 1.0)
+       << "}\n";
+  return 0;
+}
+
+}  // namespace
+
+void addReplayCommand(CLI::App& app, int& exitCode) {
+  auto o = std::make_shared<ReplayOptions>();
+  auto* sub = app.add_subcommand("replay", "Render a scenario (docs/scenario.md) headless into frames, a contact sheet "
+                                           "and a timing summary; deterministic");
+  sub->add_option("--scenario", o->scenario, "scenario file (TOML)")->required()->check(CLI::ExistingFile);
+  sub->add_option("--out", o->out, "output directory (created)")->required();
+  sub->add_option("--fps", o->fps, "frames per second of simulation time (default 10)")->check(CLI::Range(0.01, 1000.0));
+  sub->add_option("--method", o->method, "airlight method: accurate | seed | reference (default: the config's)")
+      ->check(CLI::IsMember({"accurate", "seed", "reference"}));
+  sub->add_option("--config", o->config, "service config for rigs and views (default: built-in)")->check(CLI::ExistingFile);
+  sub->add_option("--set", o->set, "override a service config key: section.key=value, repeatable")->take_all();
+  sub->add_option("--channel", o->channel, "which [[channel]] view to render (default: the first)");
+  sub->add_flag("!--no-exr", o->exr, "do not write EXR frames");
+  sub->add_flag("!--no-png", o->png, "do not write PNG frames (the contact sheet is still written)");
+  sub->add_flag("--full", o->full, "evaluate every pixel (no adaptive subsampling)");
+  sub->add_option("--exposure", o->exposure, "PNG exposure, EV (default 0: 1 cd/m2 = mid-grey)");
+  sub->add_option("--start", o->start_s, "first frame's time, s (default 0)")->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--end", o->end_s, "last frame's time, s (default: the scenario's duration)")->check(CLI::Range(0.0, 1e6));
+  sub->add_option("--sheet-columns", o->sheetColumns, "contact sheet columns (default 6)")->check(CLI::Range(1, 64));
+  sub->add_option("--sheet-width", o->sheetWidth, "contact sheet width, px (default 1536)")->check(CLI::Range(64, 16384));
+  sub->add_option("--surface", o->surface, "auto | gl | cpu (default: the config's)")->check(CLI::IsMember({"auto", "gl", "cpu"}));
+  sub->callback([o, &exitCode] { exitCode = run(*o); });
+}
+
+}  // namespace fogbeam::cli
