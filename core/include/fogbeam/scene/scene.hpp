@@ -60,7 +60,8 @@ struct Camera {
 
   /// The camera that sees pixels [x0, x0 + w) × [y0, y0 + h) of this one: the same pose and
   /// focal length, the principal point shifted by (−x0, −y0). Its pixel (i, j) samples the ray
-  /// of this camera's pixel (x0 + i, y0 + j). Offsets may be negative or extend past the image.
+  /// of this camera's pixel (x0 + i, y0 + j). Offsets may be negative or extend past the
+  /// image; w and h are pixels, ≥ 1.
   [[nodiscard]] Camera crop(int x0, int y0, int w, int h) const;
 
   /// Principal point in pixels: principal_px, or the image centre when it is empty.
