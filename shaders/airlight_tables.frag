@@ -12,7 +12,7 @@
 
 layout(location = 0) out vec4 fragColor;
 
-uniform vec2 uCentre;       // image centre, pixels
+uniform vec2 uPrincipal;       // principal point (image centre unless off-axis), pixels, x right, y down
 uniform float uInvF;        // 1 / focal length, 1/pixels
 uniform int uHeight;        // image height, pixels
 layout(binding = 0) uniform sampler2D uDistance;  // R32F, row 0 = image row 0
@@ -73,7 +73,7 @@ void main() {
   float dist = texelFetch(uDistance, ivec2(int(x), j), 0).r;
   vec3 acc = vec3(0.0);
   if (dist > 0.0) {
-    float a = (uCentre.x - x) * uInvF, b = (uCentre.y - y) * uInvF;
+    float a = (uPrincipal.x - x) * uInvF, b = (uPrincipal.y - y) * uInvF;
     float invLen = inversesqrt(1.0 + a * a + b * b);
     for (int l = 0; l < uIsoCount; ++l) {
       vec3 L = uIsoPos[l].xyz;

@@ -3,7 +3,8 @@
 // y left, z up; glTF (x, y, z) → fogbeam (z, x, y)) and stored relative to an anchor point [m].
 // The camera-relative position p = position + (anchor − O) goes to the fragment shader, which
 // takes the true distance |p|; clip space uses an infinite-far pinhole projection that puts
-// pixel centres exactly on Camera::rayDirection's rays.
+// pixel centres exactly on Camera::rayDirection's rays, off-axis cameras included (its
+// off-centre terms, core/src/gl/surface_pass.cpp clipFromCameraRel).
 layout(location = 0) in vec3 aPosition;     // m, relative to the anchor
 layout(location = 1) in vec3 aNormal;       // unit, world
 layout(location = 2) in vec3 aReflectance;  // Lambertian ρ per channel (glTF baseColorFactor.rgb)

@@ -1,7 +1,9 @@
 #version 450 core
 // fogbeam — surface_plane.frag: infinite Lambertian planes by ray–plane intersection per pixel.
 // Units: metres, cd/m². The ray of pixel (i, j) goes through its centre, as Camera::rayDirection:
-//   local = (f, W/2 − x, H/2 − y_down) = (f, W/2 − gl_FragCoord.x, gl_FragCoord.y − H/2)   (camera frame)
+//   local = (f, cx − x, cy − y_down) = (f, cx − gl_FragCoord.x, gl_FragCoord.y − (H − cy))   (camera frame)
+// with (cx, cy) the principal point in image pixels (x right, y down; (W/2, H/2) when centred)
+// and y_down = H − gl_FragCoord.y.
 //   ω = normalize(worldFromCamera · local)
 // Plane n·(X − P₀) = 0 with c = n·(P₀ − O) (camera-relative): t = c / (n·ω), the nearest t > 0 wins.
 // The ray and t are computed in double precision so that the distance stays within ~1e-7
@@ -19,13 +21,13 @@ layout(std430, binding = 1) readonly buffer Planes { PlaneGpu planes[]; };
 uniform int uPlaneCount;
 
 uniform dmat3 uWorldFromCamera;  // columns: camera +x (view axis), +y (left), +z (up)
-uniform dvec3 uFocalHalfSize;    // (f [px], W/2, H/2)
+uniform dvec3 uFocalPrincipal;   // (f, cx, H − cy) [px]: principal point in window coordinates (y up)
 
 layout(location = 0) out vec4 outLuminance;
 layout(location = 1) out float outDistance;
 
 void main() {
-  dvec3 local = dvec3(uFocalHalfSize.x, uFocalHalfSize.y - double(gl_FragCoord.x), double(gl_FragCoord.y) - uFocalHalfSize.z);
+  dvec3 local = dvec3(uFocalPrincipal.x, uFocalPrincipal.y - double(gl_FragCoord.x), double(gl_FragCoord.y) - uFocalPrincipal.z);
   dvec3 d = normalize(uWorldFromCamera * local);
   double best = 1.0e300LF;
   int hit = -1;

@@ -180,6 +180,10 @@ struct Evaluators {
 // One image size: every figure of the table, as JSON (the table is printed from it).
 json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
                GlSurfacePass* gl, GlAirlightPass* glAir) {
+  // An off-axis scene camera keeps its frustum: the principal point scales with the image.
+  if (scene.camera.principal_px)
+    *scene.camera.principal_px *= Vec2(static_cast<double>(width) / scene.camera.width,
+                                       static_cast<double>(height) / scene.camera.height);
   scene.camera.width = width;
   scene.camera.height = height;
   const Camera& cam = scene.camera;
@@ -273,7 +277,8 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
       bd[k] = surface.distance[k];
     }
     const kernels::PixelBatch px{bx.data(), by.data(), bd.data(), n};
-    const kernels::PixelGeometry geo{static_cast<float>(0.5 * width), static_cast<float>(0.5 * height),
+    const kernels::PixelGeometry geo{static_cast<float>(cam.principalPoint().x),
+                                     static_cast<float>(cam.principalPoint().y),
                                      static_cast<float>(1.0 / cam.focalLengthPixels())};
     auto runOnce = [&](bool scalar) {
       std::fill(kr.begin(), kr.end(), 0.0f);
@@ -335,9 +340,10 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
     if (failure.empty()) {
       std::vector<double> lGl, lCpu;
       const double f = cam.focalLengthPixels();
+      const Vec2 c = cam.principalPoint();
       for (int j = 0; j < height; ++j)
         for (int i = 0; i < width; ++i) {
-          const double a = (0.5 * width - (i + 0.5)) / f, b = (0.5 * height - (j + 0.5)) / f;
+          const double a = (c.x - (i + 0.5)) / f, b = (c.y - (j + 0.5)) / f;
           bool guarded = false;
           for (const auto& g : view.guards) guarded |= (a - g[0]) * (a - g[0]) + (b - g[1]) * (b - g[1]) <= g[2];
           if (guarded) continue;

@@ -471,6 +471,80 @@ TEST_F(GlSurfacePassTest, GltfAndPlanesCompositeByTrueDistance) {
   dumpOnFailure("gltf_composite", gl, expected);
 }
 
+// An off-axis camera (principal point away from the image centre): the plane shader and the
+// mesh projection must both put pixel centres on Camera::rayDirection's rays. The glTF wall
+// (x = 10) on the road, seen with the view axis near the top-right corner of the image.
+TEST_F(GlSurfacePassTest, OffAxisCameraDistancesMatchRayPlaneAndTheCentredCrop) {
+  Scene scene;
+  scene.fog = fog(0.02, 0.3);
+  scene.camera = makeCamera(Vec3(0.0, 0.0, 1.2), 0.0, 0.0, 160, 90);
+  // f = 138.6 px; half-angles 40.9° left, 16.1° right, 8.2° up, 26.8° down.
+  scene.camera.principal_px = Vec2(120.0, 20.0);
+  scene.gltf_path = std::string(FOGBEAM_TEST_DATA_DIR) + "/gltf/wall_quad.gltf";
+  scene.lamps.push_back(makeLamp("bulb", Vec3(1.0, 0.5, 2.0), 0.0, 0.0, IsotropicProfile{500.0}));
+  scene.planes.push_back(Plane{Vec3(0.0), Vec3(0.0, 0.0, 1.0), 0.2});
+  SurfaceBuffers gl;
+  auto st = pass().render(scene, gl);
+  ASSERT_TRUE(st.has_value()) << st.error().message;
+  const Camera& cam = scene.camera;
+  SurfaceBuffers expected;
+  expected.resize(cam.width, cam.height);
+  std::vector<bool> border(static_cast<std::size_t>(cam.width * cam.height), false);
+  std::size_t wall = 0, road = 0, sky = 0, wrong = 0;
+  for (int j = 0; j < cam.height; ++j)
+    for (int i = 0; i < cam.width; ++i) {
+      const auto px = static_cast<std::size_t>(j * cam.width + i);
+      const Vec3 d = cam.rayDirection(i + 0.5, j + 0.5);
+      const double tWall = 10.0 / d.x;
+      const Vec3 x = cam.position_m + tWall * d;
+      const double tRoad = d.z < 0.0 ? -cam.position_m.z / d.z : std::numeric_limits<double>::infinity();
+      const double margin = 1e-3;
+      double t = 0.0;
+      if (std::abs(x.y) < 2.0 - margin && x.z > margin && x.z < 3.0 - margin) {
+        t = tWall;
+        ++wall;
+      } else if (std::abs(x.y) > 2.0 + margin || x.z < -margin || x.z > 3.0 + margin) {
+        t = tRoad;
+        std::isinf(t) ? ++sky : ++road;
+      } else {
+        border[px] = true;
+        continue;
+      }
+      expected.distance[px] = static_cast<float>(t);
+      const double a = gl.distance[px];
+      if (std::isinf(t) ? !std::isinf(a) : !(std::abs(a - t) <= 1e-5 * t)) ++wrong;
+    }
+  std::printf("off-axis composite: %zu wall, %zu road, %zu sky pixels, %zu wrong\n", wall, road, sky, wrong);
+  EXPECT_GT(wall, 1000u);
+  EXPECT_GT(road, 1000u);
+  EXPECT_GT(sky, 1000u);
+  EXPECT_EQ(wrong, 0u);
+  dumpOnFailure("offaxis_composite", gl, expected);
+
+  // The centred camera with the same focal length that contains this one: 240×140, centre
+  // (120, 70); the off-axis image is its window from (0, 50).
+  Scene big = scene;
+  big.camera.principal_px.reset();
+  big.camera.width = 240;
+  big.camera.height = 140;
+  big.camera.fov_x = 2.0 * std::atan(120.0 / cam.focalLengthPixels());
+  SurfaceBuffers bigGl;
+  ASSERT_TRUE(pass().render(big, bigGl).has_value());
+  std::size_t compared = 0, differ = 0;
+  for (int j = 0; j < cam.height; ++j)
+    for (int i = 0; i < cam.width; ++i) {
+      const auto px = static_cast<std::size_t>(j * cam.width + i);
+      if (border[px]) continue;
+      const auto pb = static_cast<std::size_t>((50 + j) * 240 + i);
+      const double a = bigGl.distance[pb], b = gl.distance[px];
+      ++compared;
+      if (std::isinf(a) ? !std::isinf(b) : !(std::abs(a - b) <= 1e-5 * a)) ++differ;
+      else if (!(std::abs(bigGl.rgb[3 * pb] - gl.rgb[3 * px]) <= 1e-4f * std::max(bigGl.rgb[3 * pb], 1e-3f))) ++differ;
+    }
+  std::printf("off-axis vs crop of centred: %zu pixels compared, %zu differ\n", compared, differ);
+  EXPECT_EQ(differ, 0u);
+}
+
 TEST_F(GlSurfacePassTest, MissingGltfFileIsAnErrorNamingTheFile) {
   Scene scene = spotScene();
   scene.gltf_path = "/nonexistent/road.glb";

@@ -222,6 +222,34 @@ TEST(SceneFile, IsotropicPhaseAndIntegerNumbersAreAccepted) {
   EXPECT_EQ(s.camera.height, 1);
 }
 
+TEST(SceneFile, FrustumGivesAnOffAxisCameraAndItsHeight) {
+  // One channel of a three-screen cab: 40° to the left, 10° to the right of the view axis.
+  const Scene s = parse(
+      "[fog]\nextinction_per_m = 0.04\n"
+      "[camera]\nposition_m = [0, 0, 1.2]\nyaw_deg = 30\nfrustum_deg = [40, 10, 12.5, 7.5]\nwidth = 800\n");
+  const Camera& c = s.camera;
+  const double f = 800.0 / (std::tan(radians(40.0)) + std::tan(radians(10.0)));
+  EXPECT_NEAR(c.focalLengthPixels(), f, 1e-9);
+  EXPECT_EQ(c.height, static_cast<int>(std::round(f * (std::tan(radians(12.5)) + std::tan(radians(7.5))))));
+  ASSERT_TRUE(c.principal_px.has_value());
+  EXPECT_NEAR(c.principal_px->x, f * std::tan(radians(40.0)), 1e-9);
+  EXPECT_NEAR(c.principal_px->y, f * std::tan(radians(12.5)), 1e-9);
+  EXPECT_NEAR(c.frustum().left, radians(40.0), 1e-12);
+  EXPECT_NEAR(c.frustum().right, radians(10.0), 1e-12);
+  EXPECT_NEAR(c.frustum().up, radians(12.5), 1e-12);
+  // The left edge's ray: the camera's yaw plus its left half-angle.
+  const Vec3 left = c.rayDirection(0.0, c.principal_px->y);
+  EXPECT_NEAR(std::atan2(left.y, left.x), radians(70.0), 1e-12);
+  // An explicit height within 0.5 px of f (tan up + tan down) is accepted as written.
+  const Scene t = parse(
+      "[fog]\nextinction_per_m = 0.04\n"
+      "[camera]\nposition_m = [0, 0, 1.2]\nfrustum_deg = [30, 30, 20, 20]\nwidth = 640\nheight = 403\n");
+  EXPECT_EQ(t.camera.height, 403);
+  EXPECT_NEAR(t.camera.focalLengthPixels(), 320.0 / std::tan(radians(30.0)), 1e-9);
+  // Without frustum_deg the camera stays centred.
+  EXPECT_FALSE(parse(kFogAndCamera).camera.principal_px.has_value());
+}
+
 // ---- Shipped scenes ----------------------------------------------------------------------------
 
 TEST(SceneFile, ShippedOncomingSceneLoadsWithOneSharedLowBeamProfile) {
@@ -274,7 +302,7 @@ TEST(SceneFile, EveryKeyIsDocumented) {
   ASSERT_TRUE(doc) << doc.error().message;
   for (const char* key :
        {"extinction_per_m", "visibility_m", "albedo", "phase", "g", "droplet_diameter_um", "ambient_cd_m2",
-        "position_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_x_deg", "width", "height", "name", "profile",
+        "position_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_x_deg", "frustum_deg", "width", "height", "name", "profile",
         "intensity_cd", "inner_deg", "outer_deg", "scale", "color", "mount", "point_m", "normal", "reflectance", "gltf"}) {
     EXPECT_PRED2(Contains, doc.value(), "`" + std::string(key) + "`");
   }
@@ -410,6 +438,33 @@ TEST(SceneFileErrors, KeysOfAnotherModelAreRejected) {
                errorOf(kFogAndCamera +
                        "[[lamp]]\nposition_m = [0, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 5\nouter_deg = 5\n"),
                "bad.toml:11: [[lamp]] #1 outer_deg: only allowed with profile = \"spot\"");
+}
+
+TEST(SceneFileErrors, FrustumKeysSayWhatWasExpected) {
+  const std::string head = "[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\n";  // lines 1-4
+  EXPECT_PRED2(Contains, errorOf(head + "fov_x_deg = 60\nfrustum_deg = [30, 30, 20, 20]\nwidth = 640\n"),
+               "bad.toml:6: [camera]: give at most one of fov_x_deg and frustum_deg, found both (fov_x_deg on line 5)");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 30, 20]\nwidth = 640\n"),
+               "bad.toml:5: [camera] frustum_deg: expected an array of 4 numbers [left, right, up, down], found an "
+               "array of 3 elements");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 89, 20, 20]\nwidth = 640\n"),
+               "bad.toml:5: [camera] frustum_deg[1]: expected a number in (-89, 89), found 89");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 30, \"up\", 20]\nwidth = 640\n"),
+               "bad.toml:5: [camera] frustum_deg[2]: expected a number in (-89, 89), found the string \"up\"");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [-20, 10, 20, 20]\nwidth = 640\n"),
+               "bad.toml:5: [camera] frustum_deg: expected left + right > 0, found left = -20, right = 10");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 30, 5, -5]\nwidth = 640\n"),
+               "bad.toml:5: [camera] frustum_deg: expected up + down > 0, found up = 5, down = -5");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 30, 20, 20]\n"),
+               "bad.toml:3: [camera] width: missing (expected an integer in [1, 16384])");
+  // f = 640 / (2 tan 30°), so square pixels need 2 f tan 20° = 403.46 px.
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 30, 20, 20]\nwidth = 640\nheight = 360\n"),
+               "bad.toml:7: [camera] height: expected 403 (within 0.5 of 403.46");
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [30, 30, 20, 20]\nwidth = 640\nheight = 360\n"),
+               "square pixels; or leave height out), found 360");
+  // A frustum so flat that no pixel row is left.
+  EXPECT_PRED2(Contains, errorOf(head + "frustum_deg = [80, 80, 0.001, 0]\nwidth = 4\n"),
+               "bad.toml:5: [camera] frustum_deg: the derived height");
 }
 
 TEST(SceneFileErrors, ValuesOutOfRange) {

@@ -167,7 +167,8 @@ Status GlAirlightPass::render(const Camera& camera, const AirlightImageEvaluator
   // Uniforms.
   glUseProgram(m.program);
   const double f = camera.focalLengthPixels();
-  glUniform2f(m.loc("uCentre"), static_cast<float>(0.5 * w), static_cast<float>(0.5 * h));
+  const Vec2 principal = camera.principalPoint();  // (w/2, h/2) unless off-axis
+  glUniform2f(m.loc("uPrincipal"), static_cast<float>(principal.x), static_cast<float>(principal.y));
   glUniform1f(m.loc("uInvF"), static_cast<float>(1.0 / f));
   glUniform1i(m.loc("uHeight"), h);
   glUniform1i(m.loc("uIsoCount"), static_cast<GLint>(nIso));

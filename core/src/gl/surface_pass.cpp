@@ -99,7 +99,7 @@ struct GlSurfacePass::Impl {
   bool timerQuery = false;
 
   GLuint planeProgram = 0, meshProgram = 0;
-  GLint planeWorldFromCamera = -1, planeFocalHalfSize = -1, planePlaneCount = -1;
+  GLint planeWorldFromCamera = -1, planeFocalPrincipal = -1, planePlaneCount = -1;
   GLint planeExtinction = -1, planeAmbient = -1, planeLampCount = -1;
   GLint meshAnchor = -1, meshClip = -1, meshExtinction = -1, meshAmbient = -1, meshLampCount = -1;
 
@@ -158,7 +158,7 @@ struct GlSurfacePass::Impl {
     if (!mesh) return mesh.error();
     meshProgram = *mesh;
     planeWorldFromCamera = glGetUniformLocation(planeProgram, "uWorldFromCamera");
-    planeFocalHalfSize = glGetUniformLocation(planeProgram, "uFocalHalfSize");
+    planeFocalPrincipal = glGetUniformLocation(planeProgram, "uFocalPrincipal");
     planePlaneCount = glGetUniformLocation(planeProgram, "uPlaneCount");
     planeExtinction = glGetUniformLocation(planeProgram, "uExtinction");
     planeAmbient = glGetUniformLocation(planeProgram, "uAmbient");
@@ -344,9 +344,15 @@ struct GlSurfacePass::Impl {
   }
 
   // clip = projection · eye, eye = GL view space (x right, y up, −z forward) of a camera-relative
-  // world point. Infinite far plane; the symmetric frustum puts pixel centres on rayDirection().
+  // world point. Infinite far plane. Pixel centres lie on rayDirection()'s rays, off-axis too: a
+  // camera-frame point (X, Y, Z) has image x = cx − f·Y/X, y_down = cy − f·Z/X; with
+  // eye = (−Y, Z, −X) and clip w = −eye_z = X,
+  //   x_ndc = 2x/W − 1      = (2f/W)·(−Y/X) + (2cx/W − 1)  → proj[0][0] = 2f/W, proj[2][0] = 1 − 2cx/W
+  //   y_ndc = 1 − 2y_down/H = (2f/H)·(Z/X)  + (1 − 2cy/H)  → proj[1][1] = 2f/H, proj[2][1] = 2cy/H − 1
+  // (proj[2][k] multiplies eye_z = −w). Both off-centre terms are exactly 0 for a centred camera.
   static glm::mat4 clipFromCameraRel(const Camera& cam) {
     const double f = cam.focalLengthPixels();
+    const Vec2 c = cam.principalPoint();
     const Mat3 cameraFromWorld = glm::transpose(cam.worldFromCamera);
     // eye = (−y_c, z_c, −x_c) of the camera-frame point (x forward, y left, z up).
     const Mat3 eyeFromCamera(Vec3(0, 0, -1), Vec3(-1, 0, 0), Vec3(0, 1, 0));  // columns
@@ -355,6 +361,8 @@ struct GlSurfacePass::Impl {
     glm::dmat4 proj(0.0);
     proj[0][0] = 2.0 * f / cam.width;
     proj[1][1] = 2.0 * f / cam.height;
+    proj[2][0] = 1.0 - 2.0 * c.x / cam.width;
+    proj[2][1] = 2.0 * c.y / cam.height - 1.0;
     proj[2][2] = -1.0;
     proj[2][3] = -1.0;
     proj[3][2] = -2.0 * kNearPlane_m;
@@ -402,7 +410,9 @@ struct GlSurfacePass::Impl {
     if (!scene.planes.empty()) {
       glUseProgram(planeProgram);
       glUniformMatrix3dv(planeWorldFromCamera, 1, GL_FALSE, glm::value_ptr(cam.worldFromCamera));
-      glUniform3d(planeFocalHalfSize, cam.focalLengthPixels(), 0.5 * cam.width, 0.5 * cam.height);
+      // (f, cx, H − cy): the principal point in GL window coordinates (y up from the bottom).
+      const Vec2 principal = cam.principalPoint();
+      glUniform3d(planeFocalPrincipal, cam.focalLengthPixels(), principal.x, cam.height - principal.y);
       glUniform1i(planePlaneCount, static_cast<GLint>(scene.planes.size()));
       glUniform1f(planeExtinction, kt);
       glUniform1f(planeAmbient, ia);

@@ -28,6 +28,9 @@ struct ViewKey {
   Vec3 lampInCamera{0.0};
   Mat3 lampAxesInCamera{1.0};
   double fovX = 0.0, aspect = 0.0;
+  // Principal point as fractions of width and height (0.5, 0.5 when centred): with fovX and
+  // aspect it fixes the frustum in tangent space, hence the table's window.
+  double principalX = 0.5, principalY = 0.5;
   double kt = 0.0, albedo = 0.0;
   // Equal up to rounding: a moving vehicle recomputes the lamp's camera-frame pose from world
   // poses every frame (R^T R ≠ I in the last bits), which must not rebuild the tables.
@@ -38,7 +41,8 @@ struct ViewKey {
       for (int j = 0; j < 3; ++j)
         if (std::abs(lampAxesInCamera[i][j] - o.lampAxesInCamera[i][j]) > kTol) return false;
     }
-    return fovX == o.fovX && aspect == o.aspect && kt == o.kt && albedo == o.albedo;
+    return fovX == o.fovX && aspect == o.aspect && principalX == o.principalX && principalY == o.principalY &&
+           kt == o.kt && albedo == o.albedo;
   }
 };
 
@@ -458,6 +462,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   out.table_seconds = 0.0;
   const Mat3 camFromWorld = glm::transpose(cam.worldFromCamera);
   const double focal = cam.focalLengthPixels();
+  const Vec2 principal = cam.principalPoint();  // (W/2, H/2) for a centred camera
 
   // Lamps in camera coordinates: isotropic kernel parameters, view-table validity.
   st.isoParams.clear();
@@ -479,8 +484,13 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
     st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
     const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
-    const ViewKey key{camFromWorld * (ev.lamp().position_m - cam.position_m), camFromWorld * ev.lamp().worldFromLamp,
-                      cam.fov_x, static_cast<double>(cam.height) / cam.width, ev.medium().extinction_per_m,
+    const ViewKey key{camFromWorld * (ev.lamp().position_m - cam.position_m),
+                      camFromWorld * ev.lamp().worldFromLamp,
+                      cam.fov_x,
+                      static_cast<double>(cam.height) / cam.width,
+                      principal.x / cam.width,
+                      principal.y / cam.height,
+                      ev.medium().extinction_per_m,
                       ev.medium().albedo};
     if (st.viewValid[v] && st.viewKeys[v].sameAs(key)) continue;
     kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
@@ -527,7 +537,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     const AirlightEvaluator& ev = lamps_[li];
     const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
     if (p.x <= 0.0) continue;
-    st.lampPixels.emplace_back(0.5 * cam.width - focal * p.y / p.x, 0.5 * cam.height - focal * p.z / p.x);
+    st.lampPixels.emplace_back(principal.x - focal * p.y / p.x, principal.y - focal * p.z / p.x);
   }
 
   const std::size_t cap = kernels::paddedSize(n) + kChunk;
@@ -539,7 +549,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   }
   st.done.assign(n, 0);  // no reallocation once sized
   FrameCtx f{&st, &lamps_, &cam, &surface, &out,
-             kernels::PixelGeometry{static_cast<float>(0.5 * cam.width), static_cast<float>(0.5 * cam.height),
+             kernels::PixelGeometry{static_cast<float>(principal.x), static_cast<float>(principal.y),
                                     static_cast<float>(1.0 / focal)},
              &opt};
   std::size_t evaluated = 0;

@@ -140,12 +140,22 @@ void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::
 // ---------------------------------------------------------------------------------------------
 ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
                            ThreadPool& pool) {
-  const double ta = std::tan(0.5 * camera.fov_x);
-  const double tb = ta * camera.height / camera.width;  // square pixels
   const double step = std::tan(radians(stepDeg));
-  // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
-  return buildWindow(lamp, camera, -ta - step, -tb - step, static_cast<int>(std::ceil(2 * ta / step)) + 3,
-                     static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool);
+  if (camera.isCentred()) {
+    const double ta = std::tan(0.5 * camera.fov_x);
+    const double tb = ta * camera.height / camera.width;  // square pixels
+    // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
+    return buildWindow(lamp, camera, -ta - step, -tb - step, static_cast<int>(std::ceil(2 * ta / step)) + 3,
+                       static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool);
+  }
+  // Off-axis: pixel x ∈ [0, W] maps to a = (cx − x)/f ∈ [(cx − W)/f, cx/f] = [−tan right, tan left]
+  // and y ∈ [0, H] to b = (cy − y)/f ∈ [(cy − H)/f, cy/f] = [−tan down, tan up] (PixelGeometry).
+  const double f = camera.focalLengthPixels();
+  const Vec2 c = camera.principalPoint();
+  const double aLo = (c.x - camera.width) / f, aHi = c.x / f;
+  const double bLo = (c.y - camera.height) / f, bHi = c.y / f;
+  return buildWindow(lamp, camera, aLo - step, bLo - step, static_cast<int>(std::ceil((aHi - aLo) / step)) + 3,
+                     static_cast<int>(std::ceil((bHi - bLo) / step)) + 3, step, nX, pool);
 }
 
 ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0, double b0, int nA,

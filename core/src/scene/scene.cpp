@@ -38,9 +38,11 @@ constexpr std::array kCameraKeys{
     KeySpec{"yaw_deg", "number, deg, default 0"},
     KeySpec{"pitch_deg", "number, deg, default 0; positive tilts the view down"},
     KeySpec{"roll_deg", "number, deg, default 0"},
-    KeySpec{"fov_x_deg", "number, deg, default 60, (0, 180)"},
+    KeySpec{"fov_x_deg", "number, deg, default 60, (0, 180); a centred camera; not with frustum_deg"},
+    KeySpec{"frustum_deg", "[left, right, up, down], deg, optional, each in (-89, 89), left + right > 0, "
+                           "up + down > 0; an off-axis camera; not with fov_x_deg"},
     KeySpec{"width", "integer, pixels, required, [1, 16384]"},
-    KeySpec{"height", "integer, pixels, required, [1, 16384]"},
+    KeySpec{"height", "integer, pixels, [1, 16384]; required unless frustum_deg gives it (then within 0.5 px)"},
 };
 
 constexpr std::array kPlaneKeys{
@@ -55,14 +57,63 @@ constexpr double kDefaultReflectance = 0.15;
 
 // ---- Sections -------------------------------------------------------------------------------
 
+/// frustum_deg = [left, right, up, down] with width and an optional height: an off-axis camera.
+Camera parseFrustumCamera(const Section& s, const toml::node& node) {
+  const auto* a = node.as_array();
+  if (!a || a->size() != 4)
+    s.failAt(node, "frustum_deg", "expected an array of 4 numbers [left, right, up, down], found " + describeNode(node));
+  constexpr Range kHalfAngle{-89.0, 89.0, true, true};
+  std::array<double, 4> deg{};
+  for (std::size_t i = 0; i < 4; ++i)
+    deg[i] = s.numberOf(*a->get(i), "frustum_deg[" + std::to_string(i) + "]", kHalfAngle);
+  if (!(deg[0] + deg[1] > 0.0))
+    s.failAt(node, "frustum_deg",
+             "expected left + right > 0, found left = " + formatNumber(deg[0]) + ", right = " + formatNumber(deg[1]));
+  if (!(deg[2] + deg[3] > 0.0))
+    s.failAt(node, "frustum_deg",
+             "expected up + down > 0, found up = " + formatNumber(deg[2]) + ", down = " + formatNumber(deg[3]));
+  const FrustumAngles angles{radians(deg[0]), radians(deg[1]), radians(deg[2]), radians(deg[3])};
+  const int width = static_cast<int>(s.integer("width", 1, kMaxImageSide));
+  Result<Camera> derived = Camera::fromFrustum(angles, width, 0);
+  // Camera::fromFrustum's messages start with "frustum: "; here the key already says so.
+  auto what = [](const Error& e) {
+    constexpr std::string_view kPrefix = "frustum: ";
+    return e.message.rfind(kPrefix, 0) == 0 ? e.message.substr(kPrefix.size()) : e.message;
+  };
+  if (!derived) s.failAt(node, "frustum_deg", what(derived.error()));
+  const toml::node* h = s.find("height");
+  if (!h) return std::move(derived).value();
+  const int height = static_cast<int>(s.integer("height", 1, kMaxImageSide));
+  // Square pixels fix the height: f (tan up + tan down), f = width / (tan left + tan right).
+  const double exact = derived->focalLengthPixels() * (std::tan(angles.up) + std::tan(angles.down));
+  if (!(std::abs(exact - height) <= 0.5))
+    s.failAt(*h, "height",
+             "expected " + formatNumber(std::round(exact)) + " (within 0.5 of " + formatNumber(exact) +
+                 " px, the height that frustum_deg and width give square pixels; or leave height out), found " +
+                 std::to_string(height));
+  Result<Camera> c = Camera::fromFrustum(angles, width, height);
+  if (!c) s.failAt(*h, "height", what(c.error()));
+  return std::move(c).value();
+}
+
 Camera parseCamera(const Section& s) {
   s.checkKeys(kCameraKeys);
+  const Vec3 position = s.vec3("position_m");
+  const Mat3 orientation = s.orientation();
   Camera c;
-  c.position_m = s.vec3("position_m");
-  c.worldFromCamera = s.orientation();
-  c.fov_x = radians(s.number("fov_x_deg", Range{0.0, 180.0, true, true}, kDefaultFovX_deg));
-  c.width = static_cast<int>(s.integer("width", 1, kMaxImageSide));
-  c.height = static_cast<int>(s.integer("height", 1, kMaxImageSide));
+  if (const toml::node* frustum = s.find("frustum_deg")) {
+    if (const toml::node* fov = s.find("fov_x_deg"))
+      s.failAt(*frustum, "",
+               "give at most one of fov_x_deg and frustum_deg, found both (fov_x_deg on line " +
+                   std::to_string(lineOf(fov->source())) + ")");
+    c = parseFrustumCamera(s, *frustum);
+  } else {
+    c.fov_x = radians(s.number("fov_x_deg", Range{0.0, 180.0, true, true}, kDefaultFovX_deg));
+    c.width = static_cast<int>(s.integer("width", 1, kMaxImageSide));
+    c.height = static_cast<int>(s.integer("height", 1, kMaxImageSide));
+  }
+  c.position_m = position;
+  c.worldFromCamera = orientation;
   return c;
 }
 

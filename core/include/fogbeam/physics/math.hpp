@@ -7,6 +7,7 @@
 
 namespace fogbeam {
 
+using Vec2 = glm::dvec2;
 using Vec3 = glm::dvec3;
 using Mat3 = glm::dmat3;
 

@@ -59,7 +59,7 @@ struct IsoTable {
 /// The image geometry every kernel shares: pixel (x, y) → camera-frame direction
 /// (1, a, b) / |·| with a = (cx − x)·invF, b = (cy − y)·invF (x forward, y left, z up).
 struct PixelGeometry {
-  float cx = 0.0f, cy = 0.0f;  ///< image centre, pixels
+  float cx = 0.0f, cy = 0.0f;  ///< principal point (Camera::principalPoint()), pixels
   float invF = 0.0f;           ///< 1 / focal length in pixels
 };
 
@@ -91,7 +91,8 @@ struct ViewTable {
   [[nodiscard]] std::size_t bytes() const noexcept { return data.size() * sizeof(float); }
 
   /// Tabulates `lamp` (built with the accurate method) as seen from `camera`, covering its
-  /// frustum with `stepDeg` spacing (in angle at the image centre) and `nX` distances.
+  /// frustum (centred or off-axis) with `stepDeg` spacing (in angle at the view axis) and `nX`
+  /// distances.
   /// Runs on `pool`.
   [[nodiscard]] static ViewTable build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
                                        ThreadPool& pool);
