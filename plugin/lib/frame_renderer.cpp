@@ -90,7 +90,7 @@ struct ChannelRenderer::Impl {
   FastPathOptions fast;
   SubsamplingOptions subsampling;
   std::uint32_t format = FOGBEAM_FORMAT_RGBA8_SRGB;
-  Mat3 channelFromVehicle{1.0};  ///< the channel's orientation relative to the vehicle
+  Camera vehicleCamera;  ///< the channel's camera in the vehicle frame
 
   std::unique_ptr<AirlightImageEvaluator> eval;  ///< tables for `current`
   TableKey current;
@@ -107,11 +107,9 @@ struct ChannelRenderer::Impl {
     s.fog = mediumFrom(key.fog);
     const Mat3 R = rotation(ego.pose);
     const Vec3 O = position(ego.pose);
-    s.camera.position_m = O + R * (config->eye_m + channel.eye_offset_m);
-    s.camera.worldFromCamera = R * channelFromVehicle;
-    s.camera.fov_x = radians(channel.fov_x_deg);
-    s.camera.width = channel.width;
-    s.camera.height = channel.height;
+    s.camera = vehicleCamera;
+    s.camera.position_m = O + R * vehicleCamera.position_m;
+    s.camera.worldFromCamera = R * vehicleCamera.worldFromCamera;
     const Mat3 bend = worldFromYawPitchRoll(radians(key.bendingSteps * kBendingStepDeg), 0.0, 0.0);
     for (const RigLamp& r : config->ego.lamps) {
       SceneLamp l = r.lamp;
@@ -162,8 +160,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->fast.view_table_step_deg = config.view_table_step_deg;
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
-  impl->channelFromVehicle = worldFromYawPitchRoll(radians(impl->channel.yaw_deg), radians(impl->channel.pitch_deg),
-                                                   radians(impl->channel.roll_deg));
+  impl->vehicleCamera = channelCamera(config, impl->channel);
   return std::unique_ptr<ChannelRenderer>(new ChannelRenderer(std::move(impl)));
 }
 

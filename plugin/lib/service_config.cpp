@@ -77,7 +77,8 @@ constexpr std::array kChannelKeys{
     KeySpec{"name", "string, required, unique: segment /fogbeam.<name>"},
     KeySpec{"width", "integer, px, [1, 16384]"},
     KeySpec{"height", "integer, px, [1, 16384]"},
-    KeySpec{"fov_x_deg", "number, deg, (0, 180)"},
+    KeySpec{"fov_x_deg", "number, deg, (0, 180); not with frustum_deg"},
+    KeySpec{"frustum_deg", "[left, right, up, down], deg: an off-axis view; height follows (square pixels)"},
     KeySpec{"eye_offset_m", "[x, y, z], m, from the driver's eye"},
     KeySpec{"yaw_deg", "number, deg"},
     KeySpec{"pitch_deg", "number, deg"},
@@ -244,6 +245,21 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
       ch.width = static_cast<int>(s.integer("width", 1, 16384, ch.width));
       ch.height = static_cast<int>(s.integer("height", 1, 16384, ch.height));
       ch.fov_x_deg = s.number("fov_x_deg", Range{0.0, 180.0, true, true}, ch.fov_x_deg);
+      if (const auto f = s.optNumbers("frustum_deg", 4, Range{-89.0, 89.0, true, true})) {
+        if (const toml::node* fov = s.find("fov_x_deg")) {
+          s.failAt(*fov, "fov_x_deg", "give fov_x_deg or frustum_deg, not both");
+        }
+        const FrustumAngles a{radians((*f)[0]), radians((*f)[1]), radians((*f)[2]), radians((*f)[3])};
+        auto cam = Camera::fromFrustum(a, ch.width, 0);
+        if (!cam) s.failAt(*s.find("frustum_deg"), "frustum_deg", cam.error().message);
+        if (s.find("height") && std::abs(cam->height - ch.height) > 0) {
+          s.failAt(*s.find("height"), "height",
+                   "expected " + std::to_string(cam->height) + " (square pixels for frustum_deg and width) or no height, found " +
+                       std::to_string(ch.height));
+        }
+        ch.height = cam->height;
+        ch.frustum_deg = std::array<double, 4>{(*f)[0], (*f)[1], (*f)[2], (*f)[3]};
+      }
       ch.eye_offset_m = s.optVec3("eye_offset_m").value_or(ch.eye_offset_m);
       ch.yaw_deg = s.number("yaw_deg", config::kAnyFinite, 0.0);
       ch.pitch_deg = s.number("pitch_deg", config::kAnyFinite, 0.0);
@@ -288,6 +304,22 @@ std::string quoted(const std::string& s) {
 }
 
 }  // namespace
+
+Camera channelCamera(const ServiceConfig& config, const ChannelConfig& ch) {
+  Camera c;
+  if (ch.frustum_deg) {
+    const auto& f = *ch.frustum_deg;
+    c = Camera::fromFrustum(FrustumAngles{radians(f[0]), radians(f[1]), radians(f[2]), radians(f[3])}, ch.width, 0)
+            .value();  // checked when the channel was parsed
+  } else {
+    c.fov_x = radians(ch.fov_x_deg);
+    c.width = ch.width;
+    c.height = ch.height;
+  }
+  c.position_m = config.eye_m + ch.eye_offset_m;
+  c.worldFromCamera = worldFromYawPitchRoll(radians(ch.yaw_deg), radians(ch.pitch_deg), radians(ch.roll_deg));
+  return c;
+}
 
 const VehicleRig* ServiceConfig::rigFor(std::uint16_t vehicleClass) const {
   if (auto it = traffic.find(vehicleClass); it != traffic.end()) return &it->second;
@@ -391,7 +423,10 @@ std::string toToml(const ServiceConfig& c) {
     << "\ncannelloni_port = " << c.can_cannelloni_port << "\nmapping = " << quoted(c.can_mapping_path) << "\n";
   for (const ChannelConfig& ch : c.channels) {
     o << "\n[[channel]]\nname = " << quoted(ch.name) << "\nwidth = " << ch.width << "\nheight = " << ch.height
-      << "\nfov_x_deg = " << num(ch.fov_x_deg) << "\neye_offset_m = " << vec(ch.eye_offset_m)
+      << (ch.frustum_deg ? "\nfrustum_deg = [" + num((*ch.frustum_deg)[0]) + ", " + num((*ch.frustum_deg)[1]) + ", " +
+                                num((*ch.frustum_deg)[2]) + ", " + num((*ch.frustum_deg)[3]) + "]"
+                          : "\nfov_x_deg = " + num(ch.fov_x_deg))
+      << "\neye_offset_m = " << vec(ch.eye_offset_m)
       << "\nyaw_deg = " << num(ch.yaw_deg) << "\npitch_deg = " << num(ch.pitch_deg) << "\nroll_deg = " << num(ch.roll_deg)
       << "\nformat = " << quoted(ch.format) << "\ndistance = " << flag(ch.distance)
       << "\nexposure_ev = " << num(ch.exposure_ev) << "\n";

@@ -15,7 +15,9 @@
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <map>
 #include <string>
 #include <string_view>
@@ -42,6 +44,9 @@ struct ChannelConfig {
   std::string name = "main";       ///< segment /fogbeam.<name>
   int width = 320, height = 180;   ///< pixels
   double fov_x_deg = 60.0;         ///< horizontal field of view of a centred pinhole
+  /// Off-axis view instead: half-angles [left, right, up, down], deg (Camera::fromFrustum);
+  /// height follows from square pixels.
+  std::optional<std::array<double, 4>> frustum_deg;
   Vec3 eye_offset_m{0.0};          ///< from the driver's eye, vehicle frame
   double yaw_deg = 0.0, pitch_deg = 0.0, roll_deg = 0.0;  ///< relative to the vehicle
   std::string format = "rgba8-srgb";  ///< "rgba8-srgb" | "rgba16f-linear" | "rgba16f-overlay"
@@ -101,6 +106,10 @@ struct ServiceConfig {
   std::map<std::uint16_t, VehicleRig> traffic;
   [[nodiscard]] const VehicleRig* rigFor(std::uint16_t vehicleClass) const;
 };
+
+/// The channel's camera in the vehicle frame: at the driver's eye + the channel's offset, with
+/// its orientation, field of view or frustum and size.
+[[nodiscard]] Camera channelCamera(const ServiceConfig& config, const ChannelConfig& channel);
 
 /// The built-in default's text and the directory its relative paths resolve against
 /// ($FOGBEAM_CONFIG_DIR, else the repository's config/ directory fixed at build time).
