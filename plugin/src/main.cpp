@@ -1,5 +1,5 @@
 // fogbeam — the single executable. Subcommands: validate, profile (issue 2), render (issue 3);
-// bench, serve, replay, view, send come with later issues.
+// bench, serve, view (issue 5); replay, send come with later issues.
 #include "commands.hpp"
 
 #include <CLI/CLI.hpp>
@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   fogbeam::cli::addRenderCommand(app, exitCode);
   fogbeam::cli::addBenchCommand(app, exitCode);
   fogbeam::cli::addServeCommand(app, exitCode);
+  fogbeam::cli::addViewCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
 }
