@@ -603,7 +603,9 @@ int run(const ViewOptions& o) {
   // Until the frames' sizes are known: 640×360 per channel; then the native size, tiled.
   const bool sizeGiven = o.width > 0 && o.height > 0;
   const int n = static_cast<int>(channels.size());
-  GLFWwindow* win = glfwCreateWindow(sizeGiven ? o.width : 640 * n, sizeGiven ? o.height : 360, "fogbeam view", nullptr,
+  std::string title = "fogbeam view:";
+  for (const Channel& c : channels) title += " " + c.name;
+  GLFWwindow* win = glfwCreateWindow(sizeGiven ? o.width : 640 * n, sizeGiven ? o.height : 360, title.c_str(), nullptr,
                                      nullptr);
   if (!win) {
     std::fprintf(stderr, "fogbeam view: cannot open a window with an OpenGL 3.3 core context: %s\n", gGlfwError.c_str());

@@ -14,6 +14,7 @@ Cases (one ctest each):
   tiled_channels   three channels side by side (overlay, RGBA8, RGBA16F linear at -1 EV)
   writer_restart   the writer closes and another starts (new generation, new pattern): the viewer
                    attaches again and shows the new frames
+  keys             1/2/3, +/-, S, Tab typed with xdotool (skipped without it); Q quits
   timeout_unknown_channel  no such channel: exit 1 with a message after --timeout
   no_display       no DISPLAY: exit 2 with "no display"
 
@@ -242,6 +243,76 @@ def case_writer_restart(display):
         compare(shot, path, 0, frame, grey, "after the restart: the second writer's transmittance (1 - T)")
 
 
+def xdotool(display, *args):
+    return subprocess.run(["xdotool", *args], env=view_env(display), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, timeout=20, check=True).stdout
+
+
+def case_keys(display):
+    """Keys typed before the first frame (xdotool), so that the screenshot is after them."""
+    if shutil.which("xdotool") is None:
+        print("SKIP: xdotool is not installed (Debian package xdotool; scripts/setup.sh installs it)")
+        sys.exit(77)
+    W, H = 256, 144
+    names = [channel_name("keys-overlay"), channel_name("keys-rgba8")]
+    path = os.path.join(OUT_DIR, "keys.png")
+    if os.path.exists(path):
+        os.remove(path)
+    view = subprocess.Popen([FOGBEAM, "view", "--channel", ",".join(names), "--no-stats", "--screenshot", path,
+                             "--after-frames", "3", "--timeout", "30"], env=view_env(display),
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    writers = []
+    try:
+        window = xdotool(display, "search", "--sync", "--name", "^fogbeam view: " + names[0]).split()[0]
+        xdotool(display, "windowfocus", "--sync", window)
+        # 3 then 2: airlight; + + -: +0.5 EV; S: stats on; Tab: the first channel alone.
+        for key in ("3", "2", "plus", "plus", "minus", "s", "Tab"):
+            xdotool(display, "key", "--window", window, key)
+        time.sleep(0.3)  # the viewer handles them on its next turn (every 5 ms)
+        writers = [start_writer(names[0], "rgba16f-overlay", W, H), start_writer(names[1], "rgba8-srgb", W, H)]
+        frame = published(names[0])
+        out, _ = view.communicate(timeout=40)
+    finally:
+        if view.poll() is None:
+            view.kill()
+            view.wait()
+        for w in writers:
+            w.terminate()
+            w.wait(10)
+    print("  | " + out.replace("\n", "\n  | "))
+    check(view.returncode == 0 and os.path.exists(path), "view exited 0 with its screenshot")
+    if not os.path.exists(path):
+        return
+    shot = np.asarray(Image.open(path).convert("RGB")).astype(np.int32)
+    check(shot.shape[:2] == (H, 2 * W), f"window holds both channels' native sizes: {shot.shape[1]}x{shot.shape[0]}")
+    # Tab: the first channel alone, fitted and centred in the whole window.
+    x0 = (shot.shape[1] - W) // 2
+    compare(shot, path, x0, frame, lambda px: tonemap8(px[:3], 0.5), "keys 3 2 + + - S Tab: airlight +0.5 EV", rows=(1,))
+    check(int(np.abs(shot[H // 2:H - 30, 4:x0 - 4] - 13).max()) <= 2, "beside the focused channel: background only")
+    white = int((shot[4:48, 4:200].min(axis=2) >= 240).sum())
+    check(white >= 100, f"S turned the stats on: {white} white text pixels top left")
+
+    # Q quits: exit 0 without a screenshot.
+    ch = channel_name("keys-quit")
+    writer = start_writer(ch, "rgba16f-overlay", W, H)
+    try:
+        published(ch)
+        view = subprocess.Popen([FOGBEAM, "view", "--channel", ch, "--timeout", "30"], env=view_env(display),
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        window = xdotool(display, "search", "--sync", "--name", "^fogbeam view: " + ch).split()[0]
+        xdotool(display, "windowfocus", "--sync", window)
+        xdotool(display, "key", "--window", window, "q")
+        try:
+            view.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            view.kill()
+            view.wait()
+        check(view.returncode == 0, f"Q quits with status 0 (got {view.returncode})")
+    finally:
+        writer.terminate()
+        writer.wait(10)
+
+
 def case_timeout_unknown_channel(display):
     ch = channel_name("nosuch")
     t0 = time.monotonic()
@@ -259,7 +330,7 @@ def case_no_display(_display):
 
 
 def main():
-    cases = {f.__name__[len("case_"):]: f for f in (case_overlay_layers, case_tiled_channels, case_writer_restart,
+    cases = {f.__name__[len("case_"):]: f for f in (case_overlay_layers, case_tiled_channels, case_writer_restart, case_keys,
                                                    case_timeout_unknown_channel, case_no_display)}
     if CASE not in cases:
         raise SystemExit(f"unknown case {CASE}; one of {', '.join(cases)}")
