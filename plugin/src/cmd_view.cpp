@@ -528,11 +528,12 @@ void draw(std::vector<Channel>& channels, const ViewState& s, Programs& p, int f
     if (!c.waiting.empty()) {
       // Shown with or without the stats: the tile is stale or empty.
       const std::string m = fmt::format("waiting for /fogbeam.{}\n({})", c.name, c.waiting);
-      const auto [w, h] = TextBatch::extent(m, textScale);
+      const float ms = 2.0f * TextBatch::extent(m, 1.0f).first + 16.0f <= static_cast<float>(tw) ? 2.0f : 1.0f;
+      const float mx = static_cast<float>(tx) + 4.0f * ms;
+      const auto [w, h] = TextBatch::extent(m, ms);
       const float y = static_cast<float>(fbH) / 2.0f - h / 2.0f;
-      p.batch.box(static_cast<float>(tx), y - 4.0f * textScale, x0 + w + 4.0f * textScale, y + h + 2.0f * textScale,
-                  kShade);
-      p.batch.text(x0, y, m, textScale, kAmber);
+      p.batch.box(static_cast<float>(tx), y - 4.0f * ms, mx + w + 4.0f * ms, y + h + 2.0f * ms, kShade);
+      p.batch.text(mx, y, m, ms, kAmber);
     }
     // Each tile's text stays in its tile.
     glEnable(GL_SCISSOR_TEST);
@@ -689,6 +690,10 @@ int run(const ViewOptions& o) {
         return 1;
       }
       std::printf("fogbeam view: wrote %s (%dx%d)\n", o.screenshot.c_str(), fbW, fbH);
+      for (const Channel& c : channels)
+        std::printf("fogbeam view: /fogbeam.%s: %llu new frames shown, %.1f fps over the last 2 s, %llu reader retries\n",
+                    c.name.c_str(), static_cast<unsigned long long>(c.newFrames), c.fps(),
+                    static_cast<unsigned long long>(c.retries()));
       return 0;
     }
     glfwSwapBuffers(win);
