@@ -133,14 +133,16 @@ struct Channel {
   GLuint texture = 0;
   std::uint32_t texWidth = 0, texHeight = 0, texFormat = 0;  ///< 0 = nothing uploaded yet
   std::uint64_t newFrames = 0;               ///< new frames shown since start, over all attaches
-  std::uint64_t attaches = 0;
+  std::uint64_t attaches = 0;                ///< successful attaches (1 + writer restarts seen)
+  std::uint64_t goneGeneration = 0;          ///< generation of the writer last found gone (0 = none)
   std::uint64_t oldRetries = 0;              ///< retries of the readers before the current one
   std::deque<Clock::time_point> arrivals;    ///< of the last 2 s, for the fps shown
   Clock::time_point lastNew{};               ///< start or the last new frame (--timeout)
 
   [[nodiscard]] std::uint64_t retries() const { return oldRetries + (reader ? reader->retries() : 0); }
-  [[nodiscard]] double fps() const {
-    if (arrivals.size() < 2) return 0.0;
+  /// New frames per second over the last 2 s (0 when fewer than two arrived in them).
+  [[nodiscard]] double fps(Clock::time_point now) const {
+    if (arrivals.size() < 2 || now - arrivals.back() > std::chrono::seconds(2)) return 0.0;
     const double s = std::chrono::duration<double>(arrivals.back() - arrivals.front()).count();
     return s > 0.0 ? static_cast<double>(arrivals.size() - 1) / s : 0.0;
   }
@@ -192,6 +194,9 @@ bool poll(Channel& c, Clock::time_point now) {
       c.waiting = "a host depth input (f32 distance), not a frame channel";
       return false;
     }
+    // The segment of the writer found gone is still there until it unlinks it (clean exit) or a
+    // new writer replaces it (after a crash): not a new writer, keep waiting.
+    if ((*r)->generation() == c.goneGeneration) return false;
     c.reader = std::move(r).value();
     c.lastTag = 0;
     c.waiting = "attached, no frame yet";
@@ -212,6 +217,7 @@ bool poll(Channel& c, Clock::time_point now) {
     case ipc::ReadStatus::Busy: return false;
     case ipc::ReadStatus::WriterGone:
       std::fprintf(stderr, "fogbeam view: /fogbeam.%s: writer gone; waiting for a new one\n", c.name.c_str());
+      c.goneGeneration = c.reader->generation();
       c.detach("writer gone");
       return false;
   }
@@ -454,16 +460,16 @@ constexpr std::array<std::uint8_t, 4> kWhite{255, 255, 255, 255}, kAmber{255, 20
     kShade{0, 0, 0, 170};
 
 /// The stats lines of one channel (what `shown` is, the writer's metadata, the reader's counts).
-std::string statsText(const Channel& c, const ViewState& s, const Shown& shown) {
+std::string statsText(const Channel& c, const ViewState& s, const Shown& shown, Clock::time_point now) {
   std::string t = fmt::format("/fogbeam.{}  {}x{}  {}\n", c.name, c.texWidth, c.texHeight, formatName(c.texFormat));
-  t += fmt::format("frame {}  {:.1f} fps shown  {}", c.meta.frame, c.fps(),
+  t += fmt::format("frame {}  {:.1f} fps shown  {}", c.meta.frame, c.fps(now),
               layerName(shown.layer));
   if (shown.decode == Decode::ToneMap) t += fmt::format("  {:+.1f} EV", s.exposureEv);
   else if (shown.decode == Decode::AsIs) t += "  (tone-mapped by the writer)";
   t += fmt::format("\nwriter: total {:.1f} ms  surface {:.1f}  airlight {:.1f}  composite {:.1f}\n", c.meta.total_ms,
               c.meta.surface_ms, c.meta.airlight_ms, c.meta.composite_ms);
-  t += fmt::format("latency {:.1f} ms  lights {:#05x} {}\ntraffic {}  reader retries {}", c.meta.latency_ms, c.meta.lights,
-                   lightNames(c.meta.lights), c.meta.traffic_count, c.retries());
+  t += fmt::format("latency {:.1f} ms  lights {:#05x} {}\ntraffic {}  reader retries {}  attaches {}", c.meta.latency_ms,
+                   c.meta.lights, lightNames(c.meta.lights), c.meta.traffic_count, c.retries(), c.attaches);
   if (*shown.note) t += std::string("\n") + shown.note;
   return t;
 }
@@ -517,7 +523,7 @@ void draw(std::vector<Channel>& channels, const ViewState& s, Programs& p, int f
       glViewport(0, 0, fbW, fbH);
     }
     // Text at twice stb_easy_font's size where the stats fit in the tile at that size.
-    const std::string t = s.stats && c.texFormat != 0 ? statsText(c, s, shown) : std::string();
+    const std::string t = s.stats && c.texFormat != 0 ? statsText(c, s, shown, Clock::now()) : std::string();
     const float textScale = 2.0f * TextBatch::extent(t, 1.0f).first + 16.0f <= static_cast<float>(tw) ? 2.0f : 1.0f;
     const float x0 = static_cast<float>(tx) + 4.0f * textScale;
     if (!t.empty()) {
@@ -692,7 +698,7 @@ int run(const ViewOptions& o) {
       std::printf("fogbeam view: wrote %s (%dx%d)\n", o.screenshot.c_str(), fbW, fbH);
       for (const Channel& c : channels)
         std::printf("fogbeam view: /fogbeam.%s: %llu new frames shown, %.1f fps over the last 2 s, %llu reader retries\n",
-                    c.name.c_str(), static_cast<unsigned long long>(c.newFrames), c.fps(),
+                    c.name.c_str(), static_cast<unsigned long long>(c.newFrames), c.fps(Clock::now()),
                     static_cast<unsigned long long>(c.retries()));
       return 0;
     }

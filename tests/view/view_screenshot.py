@@ -14,6 +14,7 @@ Cases (one ctest each):
   tiled_channels   three channels side by side (overlay, RGBA8, RGBA16F linear at -1 EV)
   writer_restart   the writer closes and another starts (new generation, new pattern): the viewer
                    attaches again and shows the new frames
+  writer_killed    the same with a writer killed by SIGKILL (its segment left behind, stale)
   keys             1/2/3, +/-, S, Tab typed with xdotool (skipped without it); Q quits
   timeout_unknown_channel  no such channel: exit 1 with a message after --timeout
   no_display       no DISPLAY: exit 2 with "no display"
@@ -84,12 +85,16 @@ def start_writer(channel, fmt, width, height, rate=30, frames=0, variant=0):
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
-def published(channel):
-    """The pixels of the newest frame of `channel` (height x width x 4, uint8 or float32)."""
+def published(channel, not_generation=None):
+    """The pixels of the newest frame of `channel` (height x width x 4, uint8 or float32), from a
+    writer whose generation is not `not_generation` (a killed writer's segment stays behind)."""
     end = time.monotonic() + 10
     while True:
         try:
             reader = FogbeamReader(channel)
+            if reader.generation == not_generation:
+                reader.close()
+                raise FileNotFoundError(channel)
             while True:
                 got = reader.latest()
                 if got is not None:
@@ -208,24 +213,23 @@ def case_tiled_channels(display):
             w.wait(10)
 
 
-def case_writer_restart(display):
-    ch = channel_name("restart")
+def restart(display, tag, stop_first):
+    """The viewer first (it waits for the channel), then a writer that goes (stop_first), then a
+    new one with another pattern: 25 new frames are more than the first writer publishes."""
+    ch = channel_name(tag)
     W, H = 256, 144
-    path = os.path.join(OUT_DIR, "restart.png")
+    path = os.path.join(OUT_DIR, f"{tag}.png")
     if os.path.exists(path):
         os.remove(path)
-    # The viewer first: it waits for the channel. 25 new frames are more than the first writer's 10.
     view = subprocess.Popen([FOGBEAM, "view", "--channel", ch, "--layer", "transmittance", "--no-stats", "--screenshot",
                              path, "--after-frames", "25", "--timeout", "30"], env=view_env(display),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         time.sleep(0.5)
-        first = start_writer(ch, "rgba16f-overlay", W, H, rate=10, frames=10, variant=0)
-        first.wait(20)
-        check(first.returncode == 0, "first writer published 10 frames and closed the channel")
+        gone = stop_first(ch, W, H)
         second = start_writer(ch, "rgba16f-overlay", W, H, rate=20, variant=1)
         try:
-            frame = published(ch)
+            frame = published(ch, not_generation=gone)
             out, _ = view.communicate(timeout=40)
         finally:
             second.terminate()
@@ -236,16 +240,44 @@ def case_writer_restart(display):
             view.wait()
     print("  | " + out.replace("\n", "\n  | "))
     check(view.returncode == 0 and os.path.exists(path), "view exited 0 with its screenshot")
-    check(out.count("attached /fogbeam." + ch) == 2, "view attached twice (once per writer)")
-    check("writer gone" in out, "view noticed the first writer's close")
+    check(out.count("attached /fogbeam." + ch) == 2, "view attached twice (once per writer, not to the old segment)")
+    check(out.count("writer gone") == 1, "view noticed the first writer go, once")
     if os.path.exists(path):
         shot = np.asarray(Image.open(path).convert("RGB")).astype(np.int32)
         compare(shot, path, 0, frame, grey, "after the restart: the second writer's transmittance (1 - T)")
 
 
+def case_writer_restart(display):
+    def close_cleanly(ch, W, H):
+        first = start_writer(ch, "rgba16f-overlay", W, H, rate=10, frames=10, variant=0)
+        first.wait(20)
+        check(first.returncode == 0, "first writer published 10 frames and closed the channel")
+        return None  # the segment is unlinked
+    restart(display, "restart", close_cleanly)
+
+
+def case_writer_killed(display):
+    def kill(ch, W, H):
+        first = start_writer(ch, "rgba16f-overlay", W, H, rate=10, variant=0)
+        published(ch)
+        reader = FogbeamReader(ch)
+        generation = reader.generation
+        reader.close()
+        time.sleep(0.5)
+        first.kill()  # SIGKILL: the segment stays, with a dead pid, until the next writer replaces it
+        first.wait(10)
+        check(os.path.exists(f"/dev/shm/fogbeam.{ch}"), "the killed writer's segment is left behind")
+        time.sleep(1.0)  # the viewer must not attach to it again meanwhile
+        return generation
+    restart(display, "killed", kill)
+
+
 def xdotool(display, *args):
-    return subprocess.run(["xdotool", *args], env=view_env(display), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                          text=True, timeout=20, check=True).stdout
+    proc = subprocess.run(["xdotool", *args], env=view_env(display), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                          text=True, timeout=20)
+    if proc.returncode != 0:
+        raise SystemExit(f"xdotool {' '.join(args)}: exit {proc.returncode}: {proc.stderr.strip()}")
+    return proc.stdout
 
 
 def case_keys(display):
@@ -263,7 +295,9 @@ def case_keys(display):
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     writers = []
     try:
-        window = xdotool(display, "search", "--sync", "--name", "^fogbeam view: " + names[0]).split()[0]
+        # --onlyvisible: GLFW names the window before it maps it, and focusing an unmapped window
+        # is an X error (BadMatch).
+        window = xdotool(display, "search", "--sync", "--onlyvisible", "--name", "^fogbeam view: " + names[0]).split()[0]
         xdotool(display, "windowfocus", "--sync", window)
         # 3 then 2: airlight; + + -: +0.5 EV; S: stats on; Tab: the first channel alone.
         for key in ("3", "2", "plus", "plus", "minus", "s", "Tab"):
@@ -299,9 +333,11 @@ def case_keys(display):
         published(ch)
         view = subprocess.Popen([FOGBEAM, "view", "--channel", ch, "--timeout", "30"], env=view_env(display),
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        window = xdotool(display, "search", "--sync", "--name", "^fogbeam view: " + ch).split()[0]
+        window = xdotool(display, "search", "--sync", "--onlyvisible", "--name", "^fogbeam view: " + ch).split()[0]
         xdotool(display, "windowfocus", "--sync", window)
-        xdotool(display, "key", "--window", window, "q")
+        # Press only: the viewer quits on the press, and a release sent to its closed window would
+        # be an X error (BadWindow) in xdotool.
+        xdotool(display, "keydown", "--window", window, "q")
         try:
             view.communicate(timeout=10)
         except subprocess.TimeoutExpired:
@@ -330,7 +366,8 @@ def case_no_display(_display):
 
 
 def main():
-    cases = {f.__name__[len("case_"):]: f for f in (case_overlay_layers, case_tiled_channels, case_writer_restart, case_keys,
+    cases = {f.__name__[len("case_"):]: f for f in (case_overlay_layers, case_tiled_channels, case_writer_restart, case_writer_killed,
+                                                   case_keys,
                                                    case_timeout_unknown_channel, case_no_display)}
     if CASE not in cases:
         raise SystemExit(f"unknown case {CASE}; one of {', '.join(cases)}")
