@@ -320,6 +320,10 @@ ShmReader::~ShmReader() {
   if (base_) ::munmap(const_cast<std::byte*>(base_), size_);
 }
 
+std::uint64_t ShmReader::latestTag() const noexcept {
+  return load64(base_, FOGBEAM_HDR_LATEST, std::memory_order_acquire);
+}
+
 ReadStatus ShmReader::latest(FrameMeta& meta, std::vector<std::byte>& pixels, std::vector<float>* distance,
                              double heartbeat_timeout_s) {
   const std::byte* b = base_;

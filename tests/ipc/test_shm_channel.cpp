@@ -73,6 +73,28 @@ TEST(ShmChannel, FrameAndMetadataRoundTrip) {
   EXPECT_EQ(d, dist);
 }
 
+// `fogbeam view` polls latestTag() and copies only when it changed: it must change with every
+// publish, even when the frame number repeats (lock-step answers the host's frame numbers).
+TEST(ShmChannel, LatestTagChangesWithEveryPublish) {
+  const std::string ch = channelName("tag");
+  auto w = ShmWriter::create(opts(ch));
+  ASSERT_TRUE(w) << w.error().message;
+  auto r = ShmReader::attach(ch);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ((*r)->latestTag(), 0u);
+  std::vector<std::byte> pixels(64 * 32 * 8);
+  FrameMeta m;
+  m.frame = 7;
+  std::uint64_t previous = 0;
+  for (int i = 0; i < 4; ++i) {
+    const std::uint32_t slot = (*w)->publish(m, pixels);
+    const std::uint64_t tag = (*r)->latestTag();
+    EXPECT_EQ(tag, (std::uint64_t{7} << 8) | slot);
+    EXPECT_NE(tag, previous);
+    previous = tag;
+  }
+}
+
 TEST(ShmChannel, SegmentsAreOwnerOnlyByDefault) {
   const std::string ch = channelName("perm");
   {

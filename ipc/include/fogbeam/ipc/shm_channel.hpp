@@ -112,6 +112,10 @@ class ShmReader {
   [[nodiscard]] std::uint32_t format() const noexcept { return format_; }
   [[nodiscard]] bool hasDistance() const noexcept { return distanceOffset_ != 0; }
   [[nodiscard]] std::uint64_t generation() const noexcept { return generation_; }
+  /// The header's `latest` word, (frame number << 8) | slot, 0 before the first frame: it changes
+  /// with every publish, so a poller (`fogbeam view`) calls latest() only when it did. One atomic
+  /// load; says nothing about the writer's liveness (latest() checks that).
+  [[nodiscard]] std::uint64_t latestTag() const noexcept;
   /// Attempts that overlapped a write and were retried, since attach.
   [[nodiscard]] std::uint64_t retries() const noexcept { return retries_; }
 
