@@ -27,7 +27,8 @@ Mat3 rotation(const ipc::Pose& p) {
 
 Vec3 position(const ipc::Pose& p) { return Vec3(p.position_m[0], p.position_m[1], p.position_m[2]); }
 
-/// What the tables depend on besides the rig: the fog and the ego's quantised bending.
+/// What the tables depend on besides the rig: the fog and the ego's quantised bending. Fogs
+/// compare by the medium they describe (a visibility and the equivalent extinction are equal).
 struct TableKey {
   ipc::Environment fog;
   int bendingSteps = 0;
@@ -35,9 +36,15 @@ struct TableKey {
   bool operator==(const TableKey& o) const {
     const ipc::Environment& a = fog;
     const ipc::Environment& b = o.fog;
-    return bendingSteps == o.bendingSteps && a.visibility_m == b.visibility_m &&
-           a.extinction_per_m == b.extinction_per_m && a.albedo == b.albedo && a.phase == b.phase && a.g == b.g &&
-           a.droplet_diameter_um == b.droplet_diameter_um && a.ambient_cd_m2 == b.ambient_cd_m2;
+    auto kt = [](const ipc::Environment& e) {
+      return e.visibility_m > 0.0f ? extinctionFromVisibility(static_cast<double>(e.visibility_m))
+                                   : static_cast<double>(e.extinction_per_m);
+    };
+    const bool phaseSame = a.phase == b.phase && (a.phase != ipc::PhaseCode::HenyeyGreenstein || a.g == b.g) &&
+                           (a.phase != ipc::PhaseCode::FogMie || a.droplet_diameter_um == b.droplet_diameter_um);
+    // Relative 1e-6 in K_t: the float of a message and the double of a config file agree.
+    return bendingSteps == o.bendingSteps && std::abs(kt(a) - kt(b)) <= 1e-6 * kt(a) && a.albedo == b.albedo &&
+           a.ambient_cd_m2 == b.ambient_cd_m2 && phaseSame;
   }
 };
 

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   fogbeam::cli::addBenchCommand(app, exitCode);
   fogbeam::cli::addServeCommand(app, exitCode);
   fogbeam::cli::addReplayCommand(app, exitCode);
+  fogbeam::cli::addSendCommand(app, exitCode);
   fogbeam::cli::addViewCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
