@@ -1,4 +1,4 @@
-// fogbeam — DBC reader and signal decoder (format summary and choices in dbc.hpp).
+// fogbeam — DBC reader, signal decoder and encoder (format summary and choices in dbc.hpp).
 //
 // Sources: Vector, "DBC File Format Documentation" v01/2007 (§8.1 message definitions, §8.2
 // signal definitions, §11 SIG_VALTYPE_); the byte-order conventions were checked against
@@ -14,6 +14,7 @@
 #include <fogbeam/physics/photometry_io.hpp>  // readTextFile
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -21,6 +22,7 @@
 #include <cstdint>
 #include <map>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -688,6 +690,124 @@ std::optional<double> decodeSignal(const DbcSignal& signal, const CanFrame& fram
   const std::optional<DbcValue> v = decodeSignalValue(signal, frame);
   if (!v) return std::nullopt;
   return v->physical;
+}
+
+// ---------------------------------------------------------------------------------------
+// Encoding.
+
+namespace {
+
+// Shortest text that reads back as the same double ("72", "0.01", "1e+300"), for messages.
+std::string numberText(double v) {
+  std::array<char, 32> buf{};
+  const auto [end, ec] = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  if (ec != std::errc{}) return "?";
+  return std::string(buf.data(), end);
+}
+
+std::string valueText(const DbcSignal& signal, double physical) {
+  return numberText(physical) + (signal.unit.empty() ? std::string() : " " + signal.unit);
+}
+
+std::uint64_t fieldMask(std::uint8_t length) noexcept {
+  return length >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << length) - 1;
+}
+
+}  // namespace
+
+bool insertRaw(const DbcBitField& bits, std::uint64_t raw, CanFrame& frame) noexcept {
+  // Mirrors extractRaw bit for bit; the same checks, so that a field extractRaw cannot read is
+  // never half-written.
+  if (bits.length == 0 || bits.length > 64) return false;
+  const std::size_t len = std::min<std::size_t>(frame.len, kCanFdMaxLen);
+  if (bytesNeeded(bits) > len) return false;
+  auto put = [&frame](std::size_t byte, unsigned bitInByte, std::uint64_t bit) {
+    const auto m = static_cast<std::uint8_t>(1u << bitInByte);
+    if (bit != 0)
+      frame.data[byte] = static_cast<std::uint8_t>(frame.data[byte] | m);
+    else
+      frame.data[byte] = static_cast<std::uint8_t>(frame.data[byte] & static_cast<std::uint8_t>(~m));
+  };
+  if (bits.order == DbcByteOrder::Intel) {
+    // Bit i of the value goes to bit (start + i), byte·8 + bit numbering, LSB first.
+    for (std::size_t i = 0; i < bits.length; ++i) {
+      const std::size_t b = std::size_t{bits.start_bit} + i;
+      put(b / 8, static_cast<unsigned>(b % 8), (raw >> i) & 1u);
+    }
+  } else {
+    // extractRaw reads linear index msb + i as value bit (length − 1 − i): MSB first.
+    const std::size_t msb = motorolaMsbLinear(bits.start_bit);
+    for (std::size_t i = 0; i < bits.length; ++i) {
+      const std::size_t l = msb + i;
+      put(l / 8, static_cast<unsigned>(7 - l % 8), (raw >> (bits.length - 1 - i)) & 1u);
+    }
+  }
+  return true;
+}
+
+Result<std::uint64_t> encodeSignalValue(const DbcSignal& signal, double physical) {
+  const std::string what = "signal '" + signal.name + "': cannot encode " + valueText(signal, physical);
+  if (!std::isfinite(physical)) return Error{what + " (not a finite number)"};
+  if (signal.factor == 0.0 || !std::isfinite(signal.factor))
+    return Error{what + " (the factor is " + numberText(signal.factor) + ", so no raw value maps to it)"};
+  const double scaled = (physical - signal.offset) / signal.factor;
+  if (!std::isfinite(scaled)) return Error{what + " (overflows (value − offset) / factor)"};
+  switch (signal.value_type) {
+    case DbcValueType::Float32: {
+      if (signal.bits.length != 32) return Error{what + " (a float signal must be 32 bits long)"};
+      if (std::abs(scaled) > static_cast<double>(std::numeric_limits<float>::max()))
+        return Error{what + " (outside the range of a 32-bit float)"};
+      return std::uint64_t{std::bit_cast<std::uint32_t>(static_cast<float>(scaled))};
+    }
+    case DbcValueType::Float64:
+      if (signal.bits.length != 64) return Error{what + " (a double signal must be 64 bits long)"};
+      return std::bit_cast<std::uint64_t>(scaled);
+    case DbcValueType::Integer:
+      break;
+  }
+  const std::uint8_t length = signal.bits.length;
+  if (length == 0 || length > 64) return Error{what + " (field length " + std::to_string(length) + " is not 1-64)"};
+  double counts = std::round(scaled);
+  // Representable raw counts, as doubles: [lo, hiExclusive). Powers of two are exact, so the
+  // comparisons are exact even for 64-bit fields where 2^64 − 1 itself is not a double.
+  const double lo = signal.bits.is_signed ? -std::ldexp(1.0, length - 1) : 0.0;
+  const double hiExclusive = std::ldexp(1.0, signal.bits.is_signed ? length - 1 : length);
+  // Above 53 bits the field's largest value 2^n − 1 is not a double: it decodes to exactly
+  // 2^n, the nearest double. Take that back as the largest value, so that every decoded value
+  // encodes again; nothing else lies within rounding distance of the field.
+  const std::uint64_t mask = fieldMask(length);
+  if (length > 53 && counts == hiExclusive) return signal.bits.is_signed ? mask >> 1 : mask;
+  if (counts < lo || counts >= hiExclusive) {
+    // The physical range the field holds, for the message (factor may be negative).
+    const double a = lo * signal.factor + signal.offset;
+    const double b = (hiExclusive - 1.0) * signal.factor + signal.offset;
+    return Error{what + " (the " + std::to_string(length) + "-bit " + (signal.bits.is_signed ? "signed" : "unsigned") +
+                 " field holds " + numberText(std::min(a, b)) + " to " + numberText(std::max(a, b)) +
+                 (signal.unit.empty() ? std::string() : " " + signal.unit) + ")"};
+  }
+  std::uint64_t raw = 0;
+  if (signal.bits.is_signed)
+    raw = static_cast<std::uint64_t>(static_cast<std::int64_t>(counts));  // two's complement
+  else
+    raw = static_cast<std::uint64_t>(counts);
+  return raw & mask;
+}
+
+Status encodeSignal(const DbcSignal& signal, double physical, CanFrame& frame) {
+  const Result<std::uint64_t> raw = encodeSignalValue(signal, physical);
+  if (!raw) return raw.error();
+  const std::size_t need = std::max(bytesNeeded(signal.bits), signal.mux_role == DbcMuxRole::Multiplexed
+                                                                   ? bytesNeeded(signal.multiplexor)
+                                                                   : std::size_t{0});
+  if (need > std::min<std::size_t>(frame.len, kCanFdMaxLen))
+    return Error{"signal '" + signal.name + "' needs a frame of at least " + std::to_string(need) + " bytes, found " +
+                 std::to_string(frame.len)};
+  // Both writes succeed: the lengths were checked above.
+  if (signal.mux_role == DbcMuxRole::Multiplexed && !insertRaw(signal.multiplexor, signal.mux_value, frame))
+    return Error{"signal '" + signal.name + "': the multiplexor field does not fit the frame"};
+  if (!insertRaw(signal.bits, *raw, frame))
+    return Error{"signal '" + signal.name + "': the field does not fit the frame"};
+  return Ok{};
 }
 
 }  // namespace fogbeam::ipc

@@ -288,7 +288,10 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   meta.airlight_ms = ms(tA, tC);
   meta.composite_ms = ms(tC, tE);
   meta.total_ms = ms(t0, tE);
-  meta.fov_x_deg = static_cast<float>(m.channel.fov_x_deg);
+  // The whole horizontal and vertical extent (off-axis views: left + right, up + down).
+  const FrustumAngles f = m.vehicleCamera.frustum();
+  meta.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
+  meta.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
   return Ok{};
 }
 

@@ -376,7 +376,7 @@ Status validate(const ServiceConfig& c) {
   if (c.scene_path.empty()) return Error{where + ": [world] scene: missing"};
   if (c.channels.empty()) return Error{where + ": no [[channel]]: at least one output view is needed"};
   for (const ChannelConfig& ch : c.channels) {
-    if (ch.format == "rgba16f-overlay" && ch.exposure_ev != 0.0) {
+    if (ch.format != "rgba8-srgb" && ch.exposure_ev != 0.0) {
       return Error{where + ": [[channel]] " + ch.name + ": exposure_ev applies to rgba8-srgb only"};
     }
   }

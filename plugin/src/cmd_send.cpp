@@ -7,10 +7,7 @@
 #include "commands.hpp"
 
 #include <fogbeam/ipc/can_config.hpp>
-#if __has_include(<fogbeam/ipc/can_encode.hpp>)  // TEMP until the encoder lands
 #include <fogbeam/ipc/can_encode.hpp>
-#define FOGBEAM_HAVE_CAN_ENCODE 1
-#endif
 #include <fogbeam/ipc/candump.hpp>
 #include <fogbeam/ipc/cannelloni.hpp>
 #include <fogbeam/ipc/protocol.hpp>
@@ -137,7 +134,6 @@ int run(const SendOptions& o) {
   if (!udp) return fail("--to: " + udp.error().message);
 
   // CAN: the lamp states and speed through the mapping, as cannelloni or a candump log.
-#ifdef FOGBEAM_HAVE_CAN_ENCODE
   std::optional<ipc::CanEncoder> canEncoder;
   std::unique_ptr<Target> cannelloni;
   std::ofstream candump;
@@ -160,10 +156,7 @@ int run(const SendOptions& o) {
   } else if (!o.canCannelloni.empty() || !o.canCandump.empty()) {
     return fail("--can-cannelloni and --can-candump need --can-config (the CAN mapping)");
   }
-#else
-  std::optional<int> canEncoder;
-  std::uint64_t canFrames = 0;
-#endif
+
 
   std::ofstream log;
   if (!o.log.empty()) {
@@ -177,13 +170,9 @@ int run(const SendOptions& o) {
   std::signal(SIGTERM, onSendSignal);
 
   std::uint32_t sequence = 1;
-#ifdef FOGBEAM_HAVE_CAN_ENCODE
   std::uint8_t cannelloniSeq = 0;
-#endif
   std::uint64_t datagrams = 0, ticks = 0, sendErrors = 0;
-#ifdef FOGBEAM_HAVE_CAN_ENCODE
   std::uint64_t canFrames = 0;
-#endif
   std::optional<RawTerminal> term;
   // Keyboard driving state: a car on the plane, yaw rate from a/d, speed from w/s.
   plugin::ScenarioState kb;
@@ -262,7 +251,6 @@ int run(const SendOptions& o) {
                    sizeof(*udp)->addr) >= 0)
         ++datagrams;
     }
-#ifdef FOGBEAM_HAVE_CAN_ENCODE
     if (canEncoder) {
       auto frames = canEncoder->encode(st.ego_lamps.lights, static_cast<double>(st.ego.speed_m_s));
       if (frames) {
@@ -281,7 +269,6 @@ int run(const SendOptions& o) {
         }
       }
     }
-#endif
     if (log.is_open()) {
       log << wall << "," << st.t_s << "," << egoSeq << "," << lampSeq << "," << st.ego.pose.position_m[0] << ","
           << st.ego.pose.position_m[1] << "," << st.ego.pose.position_m[2] << "," << st.ego.pose.yaw_deg << ","

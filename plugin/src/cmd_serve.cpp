@@ -24,11 +24,14 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -103,11 +106,12 @@ struct StatusBoard {
   }
 };
 
-/// Plays a scenario into the store at wall-clock pace until a host's first UDP message.
+/// Plays a scenario into the store at wall-clock pace until a host's first message (a UDP
+/// message applied, or a CAN frame of a mapped message).
 class ScenarioPlayer {
  public:
-  ScenarioPlayer(plugin::Scenario s, bool loop, ipc::StateStore& store, const ipc::UdpReceiver& rx)
-      : scenario_(std::move(s)), loop_(loop), store_(store), rx_(rx) {
+  ScenarioPlayer(plugin::Scenario s, bool loop, ipc::StateStore& store, std::function<bool()> hostActive)
+      : scenario_(std::move(s)), loop_(loop), store_(store), hostActive_(std::move(hostActive)) {
     // The state at t = 0 before the first frame, so that it is not rendered with the
     // configuration's fog and then again with the scenario's.
     plugin::applyState(plugin::evaluate(scenario_, 0.0), store_, sequence_, Clock::now());
@@ -123,7 +127,7 @@ class ScenarioPlayer {
   void run() {
     const auto start = Clock::now();
     while (!stop_.load()) {
-      if (rx_.stats().applied > 0) {
+      if (hostActive_()) {
         spdlog::info("serve: a host is sending: scenario {} stopped", scenario_.name);
         break;
       }
@@ -141,7 +145,7 @@ class ScenarioPlayer {
   bool loop_;
   std::uint32_t sequence_ = 1;
   ipc::StateStore& store_;
-  const ipc::UdpReceiver& rx_;
+  std::function<bool()> hostActive_;
   std::atomic<bool> stop_{false}, playing_{true};
   std::thread thread_;
 };
@@ -165,12 +169,26 @@ int run(const ServeOptions& o) {
   auto loaded = plugin::loadServiceConfig(o.config, settings);
   if (!loaded) return fail(loaded.error().message);
   ServiceConfig cfg = std::move(loaded).value();
-  for (plugin::ChannelConfig& ch : cfg.channels) ch.name = o.channelPrefix + ch.name;
+  for (plugin::ChannelConfig& ch : cfg.channels) {
+    ch.name = o.channelPrefix + ch.name;
+    const bool ok = ch.name.size() <= 200 && std::all_of(ch.name.begin(), ch.name.end(), [](unsigned char c) {
+                      return std::isalnum(c) || c == '_' || c == '-' || c == '.';
+                    });
+    if (!ok) return fail("--channel-prefix: channel names take letters, digits, '_', '-' and '.' (200 at most): " + ch.name);
+  }
   if (o.printConfig) {
     std::fputs(plugin::toToml(cfg).c_str(), stdout);
     return 0;
   }
-  auto world = loadScene(cfg.scene_path);
+  // A scenario brings its own world (its scene); without one, [world] scene is the world.
+  std::optional<plugin::Scenario> scenario;
+  if (!cfg.scenario_path.empty()) {
+    auto sc = plugin::loadScenario(cfg.scenario_path);
+    if (!sc) return fail(sc.error().message);
+    scenario = std::move(sc).value();
+  }
+  const std::string worldPath = scenario ? scenario->scene_path : cfg.scene_path;
+  auto world = loadScene(worldPath);
   if (!world) return fail(world.error().message);
 
   ipc::StateStoreOptions so;
@@ -232,12 +250,14 @@ int run(const ServeOptions& o) {
     status = std::move(s).value();
   }
   std::unique_ptr<ScenarioPlayer> player;
-  if (!cfg.scenario_path.empty()) {
-    auto sc = plugin::loadScenario(cfg.scenario_path);
-    if (!sc) return fail(sc.error().message);
-    spdlog::info("serve: playing scenario {} ({} s{}) until a host sends", sc->name, sc->duration_s,
+  if (scenario) {
+    spdlog::info("serve: playing scenario {} ({} s{}) until a host sends (UDP or CAN)", scenario->name, scenario->duration_s,
                  cfg.scenario_loop ? ", looped" : "");
-    player = std::make_unique<ScenarioPlayer>(std::move(sc).value(), cfg.scenario_loop, store, **rx);
+    const ipc::UdpReceiver* udpIn = rx->get();
+    const ipc::CanSource* canIn = can.get();
+    player = std::make_unique<ScenarioPlayer>(std::move(*scenario), cfg.scenario_loop, store, [udpIn, canIn] {
+      return udpIn->stats().applied > 0 || (canIn && canIn->stats().matched > 0);
+    });
   }
 
   std::signal(SIGINT, onSignal);
@@ -260,9 +280,14 @@ int run(const ServeOptions& o) {
     }
   } join{beating, heart};
   for (const auto& ch : cfg.channels) {
-    spdlog::info("serve: channel /fogbeam.{} {}x{} {} fov {}°", ch.name, ch.width, ch.height, ch.format, ch.fov_x_deg);
+    if (ch.frustum_deg) {
+      spdlog::info("serve: channel /fogbeam.{} {}x{} {} frustum [{}, {}, {}, {}]°", ch.name, ch.width, ch.height, ch.format,
+                   (*ch.frustum_deg)[0], (*ch.frustum_deg)[1], (*ch.frustum_deg)[2], (*ch.frustum_deg)[3]);
+    } else {
+      spdlog::info("serve: channel /fogbeam.{} {}x{} {} fov {}°", ch.name, ch.width, ch.height, ch.format, ch.fov_x_deg);
+    }
   }
-  spdlog::info("serve: world {}, {} at {} Hz, UDP {}:{}, status port {}", cfg.scene_path,
+  spdlog::info("serve: world {}, {} at {} Hz, UDP {}:{}, status port {}", worldPath,
                cfg.lock_step ? "lock-step" : "free-running", cfg.rate_hz, cfg.udp_bind, (*rx)->port(),
                status ? status->port() : 0);
   std::printf("fogbeam serve: ready: UDP %s:%u, status port %u, %zu channel(s)\n", cfg.udp_bind.c_str(),

@@ -1,9 +1,11 @@
-// DBC reader and signal decoder: every byte order against hand-computed values, sign
-// extension, factor/offset, multiplexing, ranges, look-ups and every parse error.
+// DBC reader, signal decoder and encoder: every byte order against hand-computed values, sign
+// extension, factor/offset, multiplexing, ranges, look-ups, every parse error, and encoding as
+// the decoder's inverse.
 #include <fogbeam/ipc/dbc.hpp>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <initializer_list>
@@ -11,6 +13,8 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace fogbeam::ipc {
 namespace {
@@ -567,6 +571,272 @@ TEST(DbcErrors, GarbageNeverCrashes) {
       for (const DbcSignal& s : m.signals) (void)decodeSignalValue(s, f);
   }
   EXPECT_GT(parsed, 0);
+}
+
+// ---------------------------------------------------------------------------------------
+// Encoding: insertRaw / encodeSignalValue / encodeSignal, checked against hand-worked bytes,
+// an independent bit walk and the decoder.
+
+// The (byte, bit) positions of a field, most significant value bit first, walked the way the
+// DBC documentation describes it (Intel: start is the LSB, upward; Motorola: start is the MSB,
+// sawtooth downward) — independent of extractRaw's linear-index arithmetic.
+std::vector<std::pair<std::size_t, unsigned>> fieldPositionsMsbFirst(const DbcBitField& bits) {
+  std::vector<std::pair<std::size_t, unsigned>> out;
+  int b = bits.start_bit;
+  for (int i = 0; i < bits.length; ++i) {
+    out.emplace_back(static_cast<std::size_t>(b / 8), static_cast<unsigned>(b % 8));
+    if (bits.order == DbcByteOrder::Intel)
+      ++b;
+    else
+      b = b % 8 == 0 ? b + 15 : b - 1;
+  }
+  if (bits.order == DbcByteOrder::Intel) std::reverse(out.begin(), out.end());
+  return out;
+}
+
+TEST(DbcEncode, InsertRawHandWorkedBytes) {
+  const DbcDatabase db = loadVehicle();
+  // LOW_BEAM 29|1@0+ = byte 3 bit 5; HIGH_BEAM 30 = byte 3 bit 6.
+  CanFrame stalk = frameOf(1570, {0, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_TRUE(insertRaw(signalOf(db, "LIGHT_STALK", "LOW_BEAM").bits, 1, stalk));
+  ASSERT_TRUE(insertRaw(signalOf(db, "LIGHT_STALK", "HIGH_BEAM").bits, 1, stalk));
+  EXPECT_EQ(stalk, frameOf(1570, {0, 0, 0, 0x60, 0, 0, 0, 0}));
+  ASSERT_TRUE(insertRaw(signalOf(db, "LIGHT_STALK", "LOW_BEAM").bits, 0, stalk));  // clears only its bit
+  EXPECT_EQ(stalk, frameOf(1570, {0, 0, 0, 0x40, 0, 0, 0, 0}));
+  // SPEED 47|16@0+: 72 km/h → (72 + 2) / 0.01 = 7400 = 0x1CE8, big-endian in bytes 5–6.
+  CanFrame speed = frameOf(180, {0, 0, 0, 0, 0, 0, 0, 0});
+  const Result<std::uint64_t> raw = encodeSignalValue(signalOf(db, "SPEED", "SPEED"), 72.0);
+  ASSERT_TRUE(raw) << raw.error().message;
+  EXPECT_EQ(*raw, 7400u);
+  ASSERT_TRUE(insertRaw(signalOf(db, "SPEED", "SPEED").bits, *raw, speed));
+  EXPECT_EQ(speed, frameOf(180, {0, 0, 0, 0, 0, 0x1C, 0xE8, 0}));
+  // Motorola 12|10 = 729 = 0b10110'11001: byte 1 bits 4…0 = 10110, byte 2 bits 7…3 = 11001;
+  // the other bits of bytes 1 and 2 (all ones here) are kept.
+  CanFrame odd = frameOf(100, {0xFF, 0xFF, 0xFF, 0, 0, 0, 0, 0});
+  ASSERT_TRUE(insertRaw(oneSignal("A : 12|10@0+ (1,0) [0|0] \"\" X").bits, 729, odd));
+  EXPECT_EQ(odd, frameOf(100, {0xFF, 0xF6, 0xCF, 0, 0, 0, 0, 0}));
+  // Intel 12|10 = 0x2D9: bits 12–15 of byte 1 = 0x9 (low nibble of value), byte 2 = 0x2D.
+  CanFrame intel = frameOf(100, {0, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_TRUE(insertRaw(oneSignal("A : 12|10@1+ (1,0) [0|0] \"\" X").bits, 0x2D9, intel));
+  EXPECT_EQ(intel, frameOf(100, {0, 0x90, 0x2D, 0, 0, 0, 0, 0}));
+  // Bits of raw above the field are ignored.
+  CanFrame masked = frameOf(100, {0, 0});
+  ASSERT_TRUE(insertRaw(oneSignal("A : 4|4@1+ (1,0) [0|0] \"\" X").bits, 0xFFA, masked));
+  EXPECT_EQ(masked, frameOf(100, {0xA0, 0}));
+}
+
+TEST(DbcEncode, InsertRawRefusesFramesTooShortAndLeavesThemAlone) {
+  const DbcDatabase db = loadVehicle();
+  CanFrame f = frameOf(180, {1, 2, 3, 4, 5, 6});  // SPEED needs 7 bytes
+  const CanFrame before = f;
+  EXPECT_FALSE(insertRaw(signalOf(db, "SPEED", "SPEED").bits, 0xFFFF, f));
+  EXPECT_EQ(f, before);
+  DbcBitField zero;
+  zero.length = 0;
+  EXPECT_FALSE(insertRaw(zero, 1, f));
+  EXPECT_EQ(f, before);
+  // The frame is not lengthened either.
+  const Status s = encodeSignal(signalOf(db, "SPEED", "SPEED"), 10.0, f);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.error().message.find("SPEED"), std::string::npos) << s.error().message;
+  EXPECT_NE(s.error().message.find("7 bytes"), std::string::npos) << s.error().message;
+  EXPECT_EQ(f, before);
+}
+
+TEST(DbcEncode, InsertRawInvertsExtractRawOnRandomLayouts) {
+  std::mt19937_64 rng(777);
+  int checked = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    CanFrame f = frameOf(100, {});
+    f.len = 64;
+    for (auto& byte : f.data) byte = static_cast<std::uint8_t>(rng());
+    DbcBitField bits;
+    bits.length = static_cast<std::uint8_t>(rng() % 64 + 1);
+    bits.start_bit = static_cast<std::uint16_t>(rng() % 512);
+    bits.order = rng() % 2 == 0 ? DbcByteOrder::Intel : DbcByteOrder::Motorola;
+    const int start = bits.start_bit;
+    const int lastLinear = bits.order == DbcByteOrder::Intel ? start + bits.length - 1
+                                                             : start / 8 * 8 + 7 - start % 8 + bits.length - 1;
+    if (lastLinear >= 512) continue;
+    const std::uint64_t raw = rng();
+    const std::uint64_t mask = bits.length == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits.length) - 1;
+    const CanFrame before = f;
+    ASSERT_TRUE(insertRaw(bits, raw, f)) << start << "|" << int{bits.length};
+    EXPECT_EQ(extractRaw(bits, f), raw & mask) << start << "|" << int{bits.length};
+    // Each field bit holds its value bit; every other bit of the frame is as before.
+    CanFrame expected = before;
+    const auto positions = fieldPositionsMsbFirst(bits);
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      const auto [byte, bit] = positions[i];
+      const auto m = static_cast<std::uint8_t>(1u << bit);
+      if (((raw >> (positions.size() - 1 - i)) & 1u) != 0)
+        expected.data[byte] = static_cast<std::uint8_t>(expected.data[byte] | m);
+      else
+        expected.data[byte] = static_cast<std::uint8_t>(expected.data[byte] & ~m);
+    }
+    ASSERT_EQ(f, expected) << (bits.order == DbcByteOrder::Intel ? "Intel " : "Motorola ") << start << "|"
+                           << int{bits.length};
+    ++checked;
+  }
+  EXPECT_GT(checked, 1000);
+}
+
+TEST(DbcEncode, PhysicalValuesRoundTripThroughTheDecoder) {
+  // Both orders, signed and unsigned, odd starts and lengths crossing bytes, factors (also
+  // negative and fractional) and offsets, 1 and 64 bits.
+  const std::vector<std::string> layouts{
+      "A : 0|1@1+ (1,0) [0|0] \"\" X",           "A : 7|1@0+ (1,0) [0|0] \"\" X",
+      "A : 3|12@0- (0.001,0) [0|0] \"g\" X",     "A : 47|16@0+ (0.01,-2) [0|0] \"km/h\" X",
+      "A : 12|10@1- (0.1,0) [0|0] \"\" X",       "A : 13|11@0+ (0.5,-100) [0|0] \"\" X",
+      "A : 5|19@1- (0.25,3) [0|0] \"\" X",       "A : 29|23@0- (-2,1) [0|0] \"\" X",
+      "A : 0|64@1- (1,0) [0|0] \"\" X",          "A : 7|64@0+ (1,0) [0|0] \"\" X",
+      "A : 9|33@1+ (1e-3,-5) [0|0] \"\" X",      "A : 60|3@0- (1,0) [0|0] \"\" X"};
+  std::mt19937_64 rng(99);
+  for (const std::string& sg : layouts) {
+    const DbcSignal s = oneSignal(sg);
+    const int n = s.bits.length;
+    const std::uint64_t mask = n == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << n) - 1;
+    // Extremes and random raws; each decodes to a physical value that must encode back to it.
+    std::vector<std::uint64_t> raws{0, 1, mask, mask >> 1, (mask >> 1) + 1};
+    for (int i = 0; i < 200; ++i) raws.push_back(rng() & mask);
+    for (const std::uint64_t r : raws) {
+      CanFrame src = frameOf(100, {0, 0, 0, 0, 0, 0, 0, 0});
+      ASSERT_TRUE(insertRaw(s.bits, r, src));
+      const std::optional<double> physical = decodeSignal(s, src);
+      ASSERT_TRUE(physical.has_value());
+      // Above 2^53 a double cannot hold every integer: compare the decoded values instead.
+      CanFrame out = frameOf(100, {0xA5, 0xA5, 0xA5, 0xA5, 0xA5, 0xA5, 0xA5, 0xA5});
+      const Status st = encodeSignal(s, *physical, out);
+      ASSERT_TRUE(st) << sg << " raw " << r << ": " << st.error().message;
+      EXPECT_EQ(decodeSignal(s, out), physical) << sg << " raw " << r;
+      if (n <= 52) {
+        EXPECT_EQ(extractRaw(s.bits, out), r) << sg;
+        EXPECT_EQ(encodeSignalValue(s, *physical).value(), r) << sg;
+      }
+    }
+  }
+}
+
+TEST(DbcEncode, RoundsToTheNearestRawCount) {
+  const DbcSignal s = oneSignal("A : 0|8@1+ (0.5,0) [0|0] \"\" X");
+  EXPECT_EQ(encodeSignalValue(s, 10.2).value(), 20u);   // 20.4 → 20
+  EXPECT_EQ(encodeSignalValue(s, 10.3).value(), 21u);   // 20.6 → 21
+  EXPECT_EQ(encodeSignalValue(s, 10.25).value(), 21u);  // 20.5: halves away from zero
+  const DbcSignal sig = oneSignal("A : 0|8@1- (1,0) [0|0] \"\" X");
+  EXPECT_EQ(encodeSignalValue(sig, -1.4).value(), 0xFFu);  // −1, two's complement in 8 bits
+  EXPECT_EQ(encodeSignalValue(sig, -2.5).value(), 0xFDu);  // −3
+}
+
+TEST(DbcEncode, ValuesTheFieldCannotHoldAreErrors) {
+  auto fails = [](const DbcSignal& s, double v) {
+    const Result<std::uint64_t> r = encodeSignalValue(s, v);
+    EXPECT_FALSE(r.has_value()) << s.name << " " << v << " gave " << (r ? *r : 0);
+    return r ? std::string() : r.error().message;
+  };
+  const DbcSignal u8 = oneSignal("U8 : 0|8@1+ (1,0) [0|0] \"\" X");
+  EXPECT_EQ(encodeSignalValue(u8, 255.0).value(), 255u);
+  EXPECT_EQ(encodeSignalValue(u8, 0.0).value(), 0u);
+  EXPECT_EQ(encodeSignalValue(u8, -0.4).value(), 0u);
+  const std::string big = fails(u8, 256.0);
+  EXPECT_NE(big.find("U8"), std::string::npos) << big;
+  EXPECT_NE(big.find("256"), std::string::npos) << big;
+  EXPECT_NE(big.find("0 to 255"), std::string::npos) << big;
+  fails(u8, 255.5);  // rounds to 256
+  fails(u8, -1.0);
+  fails(u8, -0.5);  // rounds to −1
+  const DbcSignal s8 = oneSignal("S8 : 0|8@1- (1,0) [0|0] \"\" X");
+  EXPECT_EQ(encodeSignalValue(s8, 127.0).value(), 0x7Fu);
+  EXPECT_EQ(encodeSignalValue(s8, -128.0).value(), 0x80u);
+  fails(s8, 128.0);
+  const std::string neg = fails(s8, -129.0);
+  EXPECT_NE(neg.find("-128 to 127"), std::string::npos) << neg;
+  const DbcSignal one = oneSignal("B : 5|1@0- (1,0) [0|0] \"\" X");  // a signed bit: −1 or 0
+  EXPECT_EQ(encodeSignalValue(one, -1.0).value(), 1u);
+  fails(one, 1.0);
+  // 64 bits: 2^64 − 1 is not a double and decodes as 2^64, which therefore encodes as the
+  // largest value; the next double above is out. Signed likewise at 2^63.
+  const DbcSignal u64 = oneSignal("U64 : 0|64@1+ (1,0) [0|0] \"\" X");
+  EXPECT_EQ(encodeSignalValue(u64, std::ldexp(1.0, 63)).value(), std::uint64_t{1} << 63);
+  EXPECT_EQ(encodeSignalValue(u64, std::ldexp(1.0, 64)).value(), ~std::uint64_t{0});
+  fails(u64, std::nextafter(std::ldexp(1.0, 64), INFINITY));
+  const DbcSignal s64 = oneSignal("S64 : 0|64@1- (1,0) [0|0] \"\" X");
+  EXPECT_EQ(encodeSignalValue(s64, -std::ldexp(1.0, 63)).value(), std::uint64_t{1} << 63);
+  EXPECT_EQ(encodeSignalValue(s64, std::ldexp(1.0, 63)).value(), ~std::uint64_t{0} >> 1);
+  fails(s64, std::nextafter(std::ldexp(1.0, 63), INFINITY));
+  fails(s64, std::nextafter(-std::ldexp(1.0, 63), -INFINITY));
+  // Factor and offset apply before the check; the message gives the physical range and unit.
+  const DbcDatabase db = loadVehicle();
+  const std::string fast = fails(signalOf(db, "SPEED", "SPEED"), 700.0);
+  EXPECT_NE(fast.find("'SPEED'"), std::string::npos) << fast;
+  EXPECT_NE(fast.find("700 km/h"), std::string::npos) << fast;
+  EXPECT_NE(fast.find("-2 to 653.35 km/h"), std::string::npos) << fast;
+  fails(signalOf(db, "SPEED", "SPEED"), -2.01);
+  // Not numbers, and a factor no raw value scales to.
+  fails(u8, std::nan(""));
+  fails(u8, INFINITY);
+  fails(oneSignal("Z : 0|8@1+ (0,1) [0|0] \"\" X"), 1.0);
+  // The DBC range is not the encoder's business (the decoder flags it): 20 A fits 16 bits.
+  EXPECT_TRUE(encodeSignalValue(signalOf(db, "LAMP_STATUS", "LEFT_LOW_CURRENT"), 20.0).has_value());
+}
+
+TEST(DbcEncode, FloatSignalsByBitPattern) {
+  const DbcDatabase db = loadVehicle();
+  const DbcSignal& t = signalOf(db, "CABIN", "TEMPERATURE");
+  EXPECT_EQ(encodeSignalValue(t, 21.5).value(), 0x41AC0000u);
+  EXPECT_EQ(encodeSignalValue(t, -40.0).value(), 0xC2200000u);
+  CanFrame f = frameOf(1025, {0, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_TRUE(encodeSignal(t, 21.5, f));
+  EXPECT_EQ(f, frameOf(1025, {0x00, 0x00, 0xAC, 0x41, 0, 0, 0, 0}));
+  for (const double v : {0.0, -0.0, 1e-30, 3.25, -1234.5, 1e30}) {
+    ASSERT_TRUE(encodeSignal(t, v, f));
+    EXPECT_EQ(decodeSignal(t, f), static_cast<double>(static_cast<float>(v))) << v;
+  }
+  EXPECT_FALSE(encodeSignalValue(t, 1e39).has_value());  // beyond FLT_MAX
+  EXPECT_FALSE(encodeSignalValue(t, std::nan("")).has_value());
+
+  // A double, Motorola, with factor and offset: exact for values the scaling keeps exact.
+  const std::string text =
+      "BO_ 100 M: 8 X\n SG_ D : 7|64@0- (2,1) [0|0] \"\" X\nSIG_VALTYPE_ 100 D : 2;\n";
+  const Result<DbcDatabase> d = parseDbc(text, "double.dbc");
+  ASSERT_TRUE(d) << d.error().message;
+  const DbcSignal& dbl = d->messages[0].signals[0];
+  ASSERT_EQ(dbl.value_type, DbcValueType::Float64);
+  // (3 − 1) / 2 = 1.0 = 0x3FF0000000000000, big-endian from byte 0.
+  EXPECT_EQ(encodeSignalValue(dbl, 3.0).value(), 0x3FF0000000000000u);
+  for (const double v : {3.0, -1e300, 0.1 * 2 + 1, 123456.789}) {
+    CanFrame g = frameOf(100, {0, 0, 0, 0, 0, 0, 0, 0});
+    ASSERT_TRUE(encodeSignal(dbl, v, g));
+    EXPECT_DOUBLE_EQ(*decodeSignal(dbl, g), v);
+  }
+}
+
+TEST(DbcEncode, MultiplexedSignalsSetTheirMultiplexor) {
+  const DbcDatabase db = loadVehicle();
+  const DbcSignal& page = signalOf(db, "LAMP_STATUS", "PAGE");
+  const DbcSignal& leftLow = signalOf(db, "LAMP_STATUS", "LEFT_LOW_CURRENT");
+  const DbcSignal& leftHigh = signalOf(db, "LAMP_STATUS", "LEFT_HIGH_CURRENT");
+  const DbcSignal& ambient = signalOf(db, "LAMP_STATUS", "AMBIENT_LIGHT");
+  // Start from page 0 with a high nibble in byte 0 that is not PAGE's and must survive.
+  CanFrame f = frameOf(1024, {0xF0, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_TRUE(encodeSignal(leftHigh, 1.5, f));
+  EXPECT_EQ(f.data[0], 0xF1);  // PAGE = 1
+  EXPECT_EQ(decodeSignal(page, f), 1.0);
+  EXPECT_NEAR(*decodeSignal(leftHigh, f), 1.5, 1e-12);
+  EXPECT_EQ(decodeSignal(leftLow, f), std::nullopt);
+  ASSERT_TRUE(encodeSignal(ambient, 700.0, f));  // not multiplexed: PAGE unchanged
+  EXPECT_EQ(decodeSignal(page, f), 1.0);
+  EXPECT_EQ(decodeSignal(ambient, f), 700.0);
+  ASSERT_TRUE(encodeSignal(leftLow, 2.25, f));  // back to page 0
+  EXPECT_EQ(f.data[0], 0xF0);
+  EXPECT_NEAR(*decodeSignal(leftLow, f), 2.25, 1e-12);
+  EXPECT_EQ(decodeSignal(leftHigh, f), std::nullopt);
+  // Setting the multiplexor directly works too; encoding a value it cannot hold does not
+  // touch the frame.
+  ASSERT_TRUE(encodeSignal(page, 1.0, f));
+  EXPECT_EQ(decodeSignal(page, f), 1.0);
+  const CanFrame before = f;
+  EXPECT_FALSE(encodeSignal(leftLow, 70.0, f));  // 70000 counts > 16 bits
+  EXPECT_EQ(f, before);
 }
 
 }  // namespace

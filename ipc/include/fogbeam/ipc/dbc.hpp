@@ -1,4 +1,4 @@
-// fogbeam — DBC (Vector CANdb++ database) reader and signal decoder, for mapping vehicle CAN
+// fogbeam — DBC (Vector CANdb++ database) reader, signal decoder and encoder, for mapping vehicle CAN
 // signals (light stalk, speed) onto fogbeam's lamp and ego state.
 //
 // What is read (Vector "DBC File Format Documentation" v01/2007, §8 messages and signals):
@@ -140,5 +140,36 @@ struct DbcValue {
 
 /// True when the signal has a range (hasRange) and `physical` lies outside [minimum, maximum].
 [[nodiscard]] bool isOutOfRange(const DbcSignal& signal, double physical) noexcept;
+
+// ---------------------------------------------------------------------------------------
+// Encoding: the inverse of the decoding above, for tools that put signals on a bus (the host
+// stand-in `fogbeam send`, tests). Pure functions, safe from several threads on distinct frames.
+
+/// Writes the low `bits.length` bits of `raw` into `frame` where extractRaw reads them (the
+/// same bit numbering: Intel from the LSB upward, Motorola from the MSB in sawtooth order), so
+/// that extractRaw(bits, frame) == raw & mask afterwards. Bits of `raw` above the field are
+/// ignored; every other bit of the frame is left as it was. Returns false, with the frame
+/// untouched, when frame.len is too short for the field or bits.length is not 1–64 (the same
+/// cases in which extractRaw gives nullopt). frame.len is not changed: the caller sizes it.
+[[nodiscard]] bool insertRaw(const DbcBitField& bits, std::uint64_t raw, CanFrame& frame) noexcept;
+
+/// The raw bits (right-aligned, not sign-extended, masked to the field's length) that
+/// decodeSignalValue decodes to `physical`, in the signal's physical unit:
+///   integer signals: (physical − offset) / factor rounded to the nearest integer (halves away
+///     from zero), which must fit the field: 0 … 2^length − 1 unsigned, −2^(length−1) …
+///     2^(length−1) − 1 signed (two's complement);
+///   Float32 / Float64 signals: the IEEE bit pattern of (physical − offset) / factor, which
+///     must be finite (and within float's range for Float32).
+/// Errors name the signal, the value and, for integers, the physical range the field can hold.
+/// Also errors: a non-finite `physical`, a factor of 0. The DBC's [minimum, maximum] is NOT
+/// checked here (isOutOfRange does that; a decoder flags such values but they are encodable).
+[[nodiscard]] Result<std::uint64_t> encodeSignalValue(const DbcSignal& signal, double physical);
+
+/// encodeSignalValue + insertRaw: writes `physical` into `frame` and, for a multiplexed signal,
+/// also writes the multiplexor field with the signal's mux_value, so that decodeSignal finds
+/// the signal. Errors (frame unchanged): encodeSignalValue's, and a frame.len too short for
+/// the signal or its multiplexor (naming the signal and both lengths). The caller has set the
+/// frame's id, extended flag and len for the signal's message.
+[[nodiscard]] Status encodeSignal(const DbcSignal& signal, double physical, CanFrame& frame);
 
 }  // namespace fogbeam::ipc

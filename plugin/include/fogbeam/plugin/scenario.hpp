@@ -107,7 +107,8 @@ struct ScenarioState {
 [[nodiscard]] ScenarioState evaluate(const Scenario& s, double t_s);
 
 /// The datagrams (encoded protocol messages) of one state, sequence numbers from `sequence`
-/// (advanced): ego, lamps, environment, traffic (split over datagrams when needed).
+/// (advanced), in this order: environment, lamps, traffic (split over datagrams when needed),
+/// ego last (the pose a frame is stamped with completes the state).
 [[nodiscard]] std::vector<std::vector<std::uint8_t>> encodeState(const ScenarioState& state,
                                                                  std::uint32_t& sequence);
 
