@@ -51,6 +51,7 @@ struct ReplayOptions {
   int sheetColumns = 6;
   int sheetWidth = 1536;
   std::string surface;
+  int width = 0, height = 0;
 };
 
 double percentile(std::vector<double> v, double q) {
@@ -111,6 +112,12 @@ int run(const ReplayOptions& o) {
                                  [&](const plugin::ChannelConfig& c) { return c.name == o.channel; });
     if (it == cfg->channels.end()) return fail("--channel " + o.channel + ": no such channel in the service config");
     channel = static_cast<std::size_t>(it - cfg->channels.begin());
+  }
+  if (o.width > 0 || o.height > 0) {
+    plugin::ChannelConfig& ch = cfg->channels[channel];
+    if (ch.frustum_deg) return fail("--width/--height apply to centred (fov_x_deg) channels only");
+    if (o.width > 0) ch.width = o.width;
+    ch.height = o.height > 0 ? o.height : static_cast<int>(std::lround(ch.width * 9.0 / 16.0));
   }
   auto world = loadScene(scenario->scene_path);
   if (!world) return fail(world.error().message);
@@ -242,6 +249,10 @@ void addReplayCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--end", o->end_s, "last frame's time, s (default: the scenario's duration)")->check(CLI::Range(0.0, 1e6));
   sub->add_option("--sheet-columns", o->sheetColumns, "contact sheet columns (default 6)")->check(CLI::Range(1, 64));
   sub->add_option("--sheet-width", o->sheetWidth, "contact sheet width, px (default 1536)")->check(CLI::Range(64, 16384));
+  sub->add_option("--width", o->width, "image width, px (default: the channel's; same field of view)")
+      ->check(CLI::Range(16, 16384));
+  sub->add_option("--height", o->height, "image height, px (default: width · 9/16 when --width is given)")
+      ->check(CLI::Range(9, 16384));
   sub->add_option("--surface", o->surface, "auto | gl | cpu (default: the config's)")->check(CLI::IsMember({"auto", "gl", "cpu"}));
   sub->callback([o, &exitCode] { exitCode = run(*o); });
 }

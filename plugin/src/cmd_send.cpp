@@ -180,7 +180,9 @@ int run(const SendOptions& o) {
   kb.environment.visibility_m = 80.0f;
   double kbSpeed = 10.0, kbYawRate = 0.0;
   if (o.keyboard) {
+    if (::isatty(STDIN_FILENO) == 0) return fail("--keyboard needs a terminal on stdin");
     term.emplace();
+    if (!term->ok()) return fail("--keyboard: cannot put the terminal in raw mode");
     std::fprintf(stderr, "fogbeam send: keyboard: w/s speed ±2 m/s, a/d steer, space straight, l low beam, h high beam, "
                          "f front fog, r rear fog, +/- visibility ×/÷ 1.25, q quit\n");
   }

@@ -12,25 +12,19 @@ usage: send_can.py FOGBEAM CONFIG SCENARIO CAN_MAPPING READER_DIR
 """
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
 import time
 
 sys.path.insert(0, sys.argv[5])
-from fogbeam_reader import FogbeamReader, WriterGone  # noqa: E402
+from fogbeam_reader import WriterGone  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fogbeam_testlib import attach, free_port  # noqa: E402
 
 FOGBEAM, CONFIG, SCENARIO, MAPPING = sys.argv[1:5]
 LOW, HIGH = 0x2, 0x4
-
-
-def free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 prefix = f"ctest-sendcan-{os.getpid()}-"
@@ -43,15 +37,7 @@ serve = subprocess.Popen([FOGBEAM, "serve", "--config", CONFIG, "--channel-prefi
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 send = None
 try:
-    end = time.monotonic() + 60
-    reader = None
-    while reader is None:
-        try:
-            reader = FogbeamReader(prefix + "main")
-        except (FileNotFoundError, ValueError, WriterGone):
-            if serve.poll() is not None or time.monotonic() > end:
-                raise SystemExit("serve did not start: " + (serve.stdout.read() if serve.poll() is not None else ""))
-            time.sleep(0.05)
+    reader = attach(prefix + "main", serve)
     send = subprocess.Popen([FOGBEAM, "send", "--scenario", SCENARIO, "--to", f"127.0.0.1:{nobody}", "--rate", "30",
                              "--can-config", MAPPING, "--can-cannelloni", f"127.0.0.1:{can_port}", "--can-candump", log],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

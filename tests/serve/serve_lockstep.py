@@ -18,7 +18,8 @@ import sys
 import time
 
 sys.path.insert(0, sys.argv[3])
-from fogbeam_reader import FogbeamReader  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fogbeam_testlib import attach, free_port  # noqa: E402
 
 FOGBEAM, CONFIG = sys.argv[1], sys.argv[2]
 LOW_BEAM, HIGH_BEAM = 0x2, 0x4
@@ -26,14 +27,6 @@ LOW_BEAM, HIGH_BEAM = 0x2, 0x4
 
 def header(msg_type, payload, seq, t):
     return struct.pack("<IHHIId", 0x4D424746, 1, msg_type, len(payload), seq, t) + payload
-
-
-def free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def run_once(tag):
@@ -45,16 +38,7 @@ def run_once(tag):
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         path = f"/dev/shm/fogbeam.{channel}"
-        end = time.monotonic() + 20
-        reader = None
-        while reader is None:  # the segment appears before its header is written: retry
-            try:
-                reader = FogbeamReader(channel)
-            except (FileNotFoundError, ValueError):
-                if proc.poll() is not None or time.monotonic() > end:
-                    raise SystemExit(f"serve did not create {path}: "
-                                     f"{proc.stdout.read() if proc.poll() is not None else ''}")
-                time.sleep(0.02)
+        reader = attach(channel, proc, timeout_s=20)
         tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         seq = 0
 

@@ -27,18 +27,11 @@ import tempfile
 import time
 
 sys.path.insert(0, sys.argv[4])
-from fogbeam_reader import FogbeamReader, WriterGone  # noqa: E402
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "serve"))
+from fogbeam_testlib import attach, free_port  # noqa: E402
 
 FOGBEAM, CONFIG, SCENARIO = sys.argv[1], sys.argv[2], sys.argv[3]
 DURATION_S = 6.0
-
-
-def free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def pct(values, q):
@@ -68,20 +61,7 @@ def main():
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     send = None
     try:
-        end = time.monotonic() + 60
-        reader = None
-        while reader is None:
-            try:
-                reader = FogbeamReader(channel)
-                if reader.latest() is None:  # first frame: tables built
-                    reader.close()
-                    reader = None
-                    raise ValueError("no frame yet")
-            except (FileNotFoundError, ValueError, WriterGone):
-                if serve.poll() is not None or time.monotonic() > end:
-                    raise SystemExit("serve did not publish a first frame: " +
-                                     (serve.stdout.read() if serve.poll() is not None else ""))
-                time.sleep(0.05)
+        reader = attach(channel, serve, first_frame=True)
         send = subprocess.Popen([FOGBEAM, "send", "--scenario", SCENARIO, "--to", f"127.0.0.1:{port}", "--rate", "60",
                                  "--log", sent_log], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         frames, read_lag_ms = [], []
