@@ -12,7 +12,8 @@ PACKAGES=(
   libhwy-dev libpng-dev libstb-dev
   libepoxy-dev libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri
   libglfw3-dev libopenexr-dev libtinygltf-dev nlohmann-json3-dev
-  python3 python3-numpy python3-pil xvfb xauth xdotool
+  python3 python3-numpy
+  clang-14 libclang-rt-14-dev python3-pil xvfb xauth xdotool
 )
 
 missing=()

@@ -1,5 +1,6 @@
 #include <fogbeam/physics/medium.hpp>
 #include <fogbeam/physics/math.hpp>
+#include <fogbeam/util/overloaded.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -7,12 +8,6 @@
 
 namespace fogbeam {
 
-namespace {
-template <class... Ts>
-struct Overloaded : Ts... {
-  using Ts::operator()...;
-};
-}  // namespace
 
 double henyeyGreenstein(double g, double cosAlpha) noexcept {
   const double denom = 1.0 + g * g - 2.0 * g * cosAlpha;

@@ -1,3 +1,4 @@
+#include <fogbeam/util/overloaded.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/physics/profile.hpp>
 
@@ -9,10 +10,6 @@ namespace fogbeam {
 
 namespace {
 
-template <class... Ts>
-struct Overloaded : Ts... {
-  using Ts::operator()...;
-};
 
 constexpr double kTwoPi = 2.0 * kPi;
 constexpr double kHalfPi = 0.5 * kPi;
