@@ -20,7 +20,6 @@ import csv
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -28,7 +27,7 @@ import time
 
 sys.path.insert(0, sys.argv[4])
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "serve"))
-from fogbeam_testlib import attach, free_port  # noqa: E402
+from fogbeam_testlib import attach, free_port, request_status, start_serve  # noqa: E402
 
 FOGBEAM, CONFIG, SCENARIO = sys.argv[1], sys.argv[2], sys.argv[3]
 DURATION_S = 6.0
@@ -41,24 +40,13 @@ def pct(values, q):
     return v[min(len(v) - 1, int(q * len(v)))]
 
 
-def request_status(port):
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.settimeout(2.0)
-    s.sendto(b"status", ("127.0.0.1", port))
-    data, _ = s.recvfrom(65536)
-    s.close()
-    return json.loads(data)
-
-
 def main():
     prefix = f"ctest-timing-{os.getpid()}-"
     channel = prefix + "main"
     port, status_port = free_port(), free_port()
     tmp = tempfile.mkdtemp(prefix="fogbeam-timing-")
     sent_log = os.path.join(tmp, "sent.csv")
-    serve = subprocess.Popen([FOGBEAM, "serve", "--config", CONFIG, "--channel-prefix", prefix, "--udp-port", str(port),
-                              "--status-port", str(status_port), "--duration", "120"],
-                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    serve = start_serve(FOGBEAM, CONFIG, prefix, port, status_port)
     send = None
     try:
         reader = attach(channel, serve, first_frame=True)
