@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""End to end through `fogbeam serve` in lock-step mode (issue 5, first version).
+"""End to end through `fogbeam serve` in lock-step mode (issue 5).
 
 Starts the service on a small scene, drives it over UDP (docs/protocol.md) like a host would:
 environment, lamp state, ego pose, then frame requests; reads every frame with the Python reader
