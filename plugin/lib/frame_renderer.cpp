@@ -165,6 +165,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   if (!m) return m.error();
   impl->method = *m;
   impl->fast.view_table_step_deg = config.view_table_step_deg;
+  impl->fast.moving_lamps = config.moving_lamps == "per-ray" ? MovingLampPath::PerRay : MovingLampPath::Pencil;
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
   impl->vehicleCamera = channelCamera(config, impl->channel);
@@ -249,9 +250,9 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   out.airlight_evaluated = m.air.evaluated;
   out.traffic_evaluated = 0;
   if (!traffic.lamps.empty()) {
-    // Traffic lamps move relative to the eye: no view tables, so measured profiles go per ray
-    // (the slow path, docs/airlight.md); per-lamp tables come from the evaluators' caches, the
-    // pool is the frame's.
+    // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
+    // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
+    // per-lamp tables come from the evaluators' caches, the pool is the frame's.
     auto te = AirlightImageEvaluator::build(traffic, m.method, AirlightOptions{}, m.eval->pool(), m.fast);
     if (!te) return te.error();
     te->evaluate(traffic, m.surface, m.subsampling, m.trafficAir);

@@ -26,7 +26,7 @@ using config::Section;
 constexpr std::array kTopKeys{
     KeySpec{"world", "table [world]: scene, scenario, scenario_loop"},
     KeySpec{"fog", "table [fog]: scene [fog] keys, the fog until a host sends one"},
-    KeySpec{"render", "table [render]: method, subsampling, view_table_step_deg, surface, threads"},
+    KeySpec{"render", "table [render]: method, subsampling, view_table_step_deg, moving_lamps, surface, threads"},
     KeySpec{"timing", "table [timing]: mode, rate_hz"},
     KeySpec{"status", "table [status]: interval_s, udp_port"},
     KeySpec{"input", "table [input]: [input.udp], [input.can]"},
@@ -43,6 +43,7 @@ constexpr std::array kRenderKeys{
     KeySpec{"method", "\"accurate\" | \"seed\" | \"reference\""},
     KeySpec{"subsampling", "boolean"},
     KeySpec{"view_table_step_deg", "number, deg, [0.05, 5]"},
+    KeySpec{"moving_lamps", "\"pencil\" | \"per-ray\""},
     KeySpec{"surface", "\"auto\" | \"gl\" | \"cpu\""},
     KeySpec{"threads", "integer, 0 = every core"},
 };
@@ -189,6 +190,8 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     c.method = s.choice("method", methods, c.method);
     c.subsampling = s.boolean("subsampling", c.subsampling);
     c.view_table_step_deg = s.number("view_table_step_deg", Range{0.05, 5.0}, c.view_table_step_deg);
+    const std::array<std::string_view, 2> moving{"pencil", "per-ray"};
+    c.moving_lamps = s.choice("moving_lamps", moving, c.moving_lamps);
     const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
     c.surface = s.choice("surface", surfaces, c.surface);
     c.threads = static_cast<unsigned>(s.integer("threads", 0, 256, c.threads));
@@ -409,7 +412,8 @@ std::string toToml(const ServiceConfig& c) {
     << "\nscenario_loop = " << flag(c.scenario_loop) << "\n";
   o << "\n[fog]\n" << c.fog_text << "\n";
   o << "\n[render]\nmethod = " << quoted(c.method) << "\nsubsampling = " << flag(c.subsampling)
-    << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nsurface = " << quoted(c.surface)
+    << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nmoving_lamps = " << quoted(c.moving_lamps)
+    << "\nsurface = " << quoted(c.surface)
     << "\nthreads = " << c.threads << "\n";
   o << "\n[timing]\nmode = " << quoted(c.lock_step ? "lock-step" : "free-running") << "\nrate_hz = " << num(c.rate_hz)
     << "\n";

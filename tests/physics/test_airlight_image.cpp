@@ -123,6 +123,65 @@ TEST(AirlightImage, SubsampledMatchesFullWithinOnePercentP95) {
   EXPECT_LT(sub.evaluated, full.evaluated / 2);
 }
 
+// Per-pixel relative error of `got` against `want` over all pixels and channels (floored at
+// 1e-3 cd/m²): p95 and max.
+std::pair<double, double> imageError(const AirlightImage& got, const AirlightImage& want) {
+  std::vector<double> rel;
+  for (std::size_t k = 0; k < want.rgb.size(); ++k) {
+    const double a = want.rgb[k], b = got.rgb[k];
+    rel.push_back(std::abs(b - a) / std::max(a, 1e-3));
+  }
+  std::sort(rel.begin(), rel.end());
+  return {rel[rel.size() * 95 / 100], rel.back()};
+}
+
+// The oncoming car's measured lamps of nightRoad move relative to the eye: the pencil path for
+// such lamps (MovingLampPath::Pencil, the default) against the per-ray accurate method, the
+// definition, and both against the reference method.
+TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
+  Scene scene = nightRoad(128, 72);
+  Scene oncoming = scene;
+  oncoming.lamps = {scene.lamps[2], scene.lamps[3]};
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  auto run = [&](MovingLampPath path, AirlightImage& img) {
+    FastPathOptions f = testFastPath();
+    f.moving_lamps = path;
+    auto ev = AirlightImageEvaluator::build(oncoming, AirlightMethod::Accurate, {}, 0, f);
+    ASSERT_TRUE(ev.has_value());
+    ev->evaluate(oncoming, surf, SubsamplingOptions{.full = true}, img);
+    std::printf("%s: %.1f ms\n", ev->describe().c_str(), 1e3 * img.seconds);
+  };
+  AirlightImage perRay, pencil;
+  run(MovingLampPath::PerRay, perRay);
+  run(MovingLampPath::Pencil, pencil);
+  // Both against the reference method on random pixels: the truth both approximate.
+  auto ref = AirlightImageEvaluator::build(oncoming, AirlightMethod::Reference, {}, 0);
+  ASSERT_TRUE(ref.has_value());
+  std::mt19937 rng(5);
+  std::vector<double> eRay, ePencil;
+  for (int n = 0; n < 400; ++n) {
+    const int i = static_cast<int>(rng() % 128), j = static_cast<int>(rng() % 72);
+    const std::size_t k = static_cast<std::size_t>(j) * 128 + static_cast<std::size_t>(i);
+    const Ray ray{scene.camera.position_m, scene.camera.rayDirection(i + 0.5, j + 0.5), static_cast<double>(surf.distance[k])};
+    float r[3];
+    ref->evaluateRay(ray, r);
+    const double want = std::max(static_cast<double>(r[0]), 1e-3);
+    eRay.push_back(std::abs(static_cast<double>(perRay.rgb[3 * k]) - static_cast<double>(r[0])) / want);
+    ePencil.push_back(std::abs(static_cast<double>(pencil.rgb[3 * k]) - static_cast<double>(r[0])) / want);
+  }
+  std::sort(eRay.begin(), eRay.end());
+  std::sort(ePencil.begin(), ePencil.end());
+  std::printf("against the reference (400 pixels): per ray p95 %.2e max %.2e, pencil p95 %.2e max %.2e\n",
+              eRay[380], eRay.back(), ePencil[380], ePencil.back());
+  EXPECT_LE(ePencil[380], 0.01);
+  const auto [pencilP95, pencilMax] = imageError(pencil, perRay);
+  std::printf("pencil against per ray: p95 %.2e max %.2e; %.1f× faster\n", pencilP95, pencilMax,
+              perRay.seconds / pencil.seconds);
+  EXPECT_LE(pencilP95, 1e-3);
+  EXPECT_LE(pencilMax, 0.02);
+}
+
 // An off-axis camera (one channel of a multi-screen cab) sees a window of a larger centred
 // camera with the same pose and focal length; its image must be that window of the centred
 // image. The window holds both vehicle lamps' images, so the view tables (whose window in the

@@ -15,12 +15,6 @@
 
 namespace fogbeam {
 
-struct AirlightEvaluator::Tables {
-  std::shared_ptr<const detail::GMomentTable> g;
-  std::shared_ptr<const detail::SeedCoefficients> seed;
-  std::shared_ptr<const detail::GreatCircleMoments> circles;
-};
-
 namespace {
 
 constexpr double kHalfPi = 0.5 * kPi;

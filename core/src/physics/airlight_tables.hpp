@@ -87,3 +87,15 @@ class GreatCircleMoments {
 };
 
 }  // namespace fogbeam::detail
+
+namespace fogbeam {
+
+// The tables an evaluator holds (shared with other evaluators of the same fog or profile).
+struct AirlightEvaluator::Tables {
+  std::shared_ptr<const detail::GMomentTable> g;
+  std::shared_ptr<const detail::SeedCoefficients> seed;
+  std::shared_ptr<const detail::GreatCircleMoments> circles;
+};
+
+}  // namespace fogbeam
+

@@ -1,5 +1,6 @@
 #include <fogbeam/render/airlight_image.hpp>
 
+#include <fogbeam/physics/airlight_pencil.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 
 #include <algorithm>
@@ -7,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 namespace fogbeam {
@@ -52,7 +54,15 @@ struct AirlightImageEvaluator::State {
   AirlightMethod method = AirlightMethod::Accurate;
   FastPathOptions fast;
   // Lamp routing (indices into lamps_).
-  std::vector<std::size_t> isoLamps, viewLamps, rayLamps;
+  std::vector<std::size_t> isoLamps, viewLamps, rayLamps, pencilLamps;
+  // Per pencilLamps entry: the integrator for this frame's eye and lamp pose, and that pose.
+  std::vector<std::optional<PencilAirlight>> pencils;
+  struct PencilKey {
+    const AirlightEvaluator* lamp = nullptr;
+    Vec3 eye{0.0}, position{0.0};
+    Mat3 axes{1.0};
+  };
+  std::vector<PencilKey> pencilKeys;
   std::shared_ptr<const kernels::IsoTable> isoTable;
   // Per vehicle lamp v: viewTables[kTablesPerLamp·v] covers the frustum except a hole around
   // the lamp's image, the next ones (empty when the lamp is not in front) finer rings inside
@@ -110,10 +120,18 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
       st.isoLamps.push_back(i);
     else if (useFast && sl.mount == LampMount::Vehicle)
       st.viewLamps.push_back(i);
+    else if (useFast && fast.moving_lamps == MovingLampPath::Pencil)
+      st.pencilLamps.push_back(i);
     else
       st.rayLamps.push_back(i);
   }
   if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
+  if (!st.pencilLamps.empty()) {
+    // The pencil's options are checked here, once: an integrator built per frame must not fail.
+    if (auto probe = PencilAirlight::build(e.lamps_[st.pencilLamps[0]], scene.camera.position_m, fast.pencil_options);
+        !probe)
+      return Error{"fast path: " + probe.error().message};
+  }
   st.viewTables.resize(kTablesPerLamp * st.viewLamps.size());
   st.rayGuards.resize(st.viewLamps.size());
   st.viewKeys.resize(st.viewLamps.size());
@@ -154,7 +172,8 @@ std::string AirlightImageEvaluator::describe() const {
     o << "per-ray evaluation for all " << lamps_.size() << " lamps";
   } else {
     o << st.isoLamps.size() << " isotropic lamp(s) by F table, " << st.viewLamps.size()
-      << " vehicle lamp(s) by view table, " << st.rayLamps.size() << " per ray; SIMD target "
+      << " vehicle lamp(s) by view table, " << st.pencilLamps.size() << " moving lamp(s) by pencil, "
+      << st.rayLamps.size() << " per ray; SIMD target "
       << kernels::activeTarget();
   }
   return o.str();
@@ -168,7 +187,7 @@ AirlightImageEvaluator::FastPathView AirlightImageEvaluator::fastPathView() cons
   v.viewTables = &st.viewTables;
   for (const auto& g : st.rayGuards)
     if (g.r2 >= 0.0) v.guards.push_back({g.a, g.b, g.r2});
-  v.complete = st.rayLamps.empty();
+  v.complete = st.rayLamps.empty() && st.pencilLamps.empty();
   return v;
 }
 
@@ -290,7 +309,7 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
       b[k] += static_cast<float>(l * ev.lamp().color[2]);
     }
   }
-  if (!st.rayLamps.empty()) {
+  if (!st.rayLamps.empty() || !st.pencilLamps.empty()) {
     for (std::size_t k = 0; k < n; ++k) {
       const Ray ray{f.cam->position_m,
                     f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
@@ -301,6 +320,12 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
         const AirlightEvaluator& ev = (*f.lamps)[li];
         const double l = ev.evaluate(ray);
         for (int c = 0; c < 3; ++c) acc[c] += l * ev.lamp().color[c];
+      }
+      for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
+        if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q]) continue;
+        const PencilAirlight& pa = *st.pencils[q];
+        const double l = pa.evaluate(ray.direction, ray.distance_m);
+        for (int c = 0; c < 3; ++c) acc[c] += l * pa.lamp().lamp().color[c];
       }
       r[k] += static_cast<float>(acc[0]);
       g[k] += static_cast<float>(acc[1]);
@@ -529,6 +554,26 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     st.viewKeys[v] = key;
     st.viewValid[v] = true;
     for (std::size_t t = 0; t < kTablesPerLamp; ++t) out.table_seconds += tables[t].build_seconds;
+  }
+  // Moving lamps through the pencil: a new integrator state when the eye or the lamp moved
+  // (spokes are then sampled again as pixels need them; their memory is kept).
+  st.pencils.resize(st.pencilLamps.size());
+  st.pencilKeys.resize(st.pencilLamps.size());
+  for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
+    const AirlightEvaluator& ev = lamps_[st.pencilLamps[q]];
+    const State::PencilKey key{&ev, cam.position_m, ev.lamp().position_m, ev.lamp().worldFromLamp};
+    State::PencilKey& old = st.pencilKeys[q];
+    const bool same = st.pencils[q] && old.lamp == key.lamp && old.eye == key.eye && old.position == key.position &&
+                      old.axes == key.axes;
+    if (same) continue;
+    if (st.pencils[q] && old.lamp == key.lamp) {
+      st.pencils[q]->reset(cam.position_m);
+    } else {
+      auto pa = PencilAirlight::build(ev, cam.position_m, st.fast.pencil_options);
+      if (pa) st.pencils[q].emplace(std::move(pa).value());
+      else st.pencils[q].reset();
+    }
+    old = key;
   }
   // Image positions of lamps in front of the camera (capacity kept between frames).
   st.lampPixels.clear();

@@ -109,6 +109,7 @@ class AirlightEvaluator {
   struct Tables;  // private, defined in the implementation
 
  private:
+  friend class PencilAirlight;  // shares the accurate method's G-moment table
   AirlightEvaluator() = default;
   Lamp lamp_;
   Medium medium_;

@@ -1,0 +1,299 @@
+// fogbeam — the accurate method over the pencil of planes through the eye and the lamp
+// (airlight_pencil.hpp).
+#include <fogbeam/physics/airlight_pencil.hpp>
+
+#include "airlight_tables.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+namespace fogbeam {
+
+namespace {
+constexpr double kHalfPi = 0.5 * kPi;
+constexpr double kTwoPi = 2.0 * kPi;
+// As in airlight.cpp: beyond this optical eye–lamp distance the airlight underflows.
+constexpr double kMaxOpticalDistance = 700.0;
+}  // namespace
+
+Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, const Vec3& eye,
+                                             const PencilOptions& options) {
+  if (lamp.method() != AirlightMethod::Accurate)
+    return Error{"pencil airlight: the lamp's evaluator must use the accurate method"};
+  if (!(options.spokes >= 8) || !(options.piece_deg > 0.0 && options.piece_deg <= 45.0))
+    return Error{"pencil airlight: need spokes >= 8 and 0 < piece_deg <= 45"};
+  PencilAirlight p;
+  p.lamp_ = &lamp;
+  p.options_ = options;
+  p.spokeCount_ = options.spokes;
+  p.pieces_.resize(static_cast<std::size_t>(options.spokes));
+  p.state_ = std::make_unique<std::atomic<int>[]>(static_cast<std::size_t>(options.spokes));
+  p.reset(eye);
+  return p;
+}
+
+void PencilAirlight::reset(const Vec3& eye) {
+  eye_ = eye;
+  const Vec3 d = lamp_->lamp().position_m - eye;
+  distance_ = glm::length(d);
+  negligible_ = lamp_->medium().extinction_per_m * distance_ > kMaxOpticalDistance;
+  if (distance_ > 0.0) {
+    e0_ = d / distance_;
+    const Vec3 a = std::abs(e0_.x) < 0.6 ? Vec3(1, 0, 0) : (std::abs(e0_.y) < 0.6 ? Vec3(0, 1, 0) : Vec3(0, 0, 1));
+    e1_ = glm::normalize(glm::cross(e0_, a));
+    e2_ = glm::cross(e0_, e1_);
+  }
+  for (int s = 0; s < spokeCount_; ++s) state_[static_cast<std::size_t>(s)].store(0, std::memory_order_relaxed);
+}
+
+PencilAirlight::SpokePair PencilAirlight::spokesOf(const Vec3& direction) const noexcept {
+  if (negligible_ || !(distance_ > 1e-6)) return {};  // nothing to integrate, or per ray (eye at the lamp)
+  const double c = glm::dot(direction, e0_);
+  const Vec3 perp = direction - c * e0_;
+  const double phi = std::atan2(glm::dot(perp, e2_), glm::dot(perp, e1_));  // 0 on the axis itself: any spoke
+  const double u = (phi + kPi) / kTwoPi * spokeCount_;
+  const double fl = std::floor(u);
+  SpokePair sp;
+  sp.s0 = static_cast<int>(fl) % spokeCount_;
+  if (sp.s0 < 0) sp.s0 += spokeCount_;
+  sp.s1 = (sp.s0 + 1) % spokeCount_;
+  sp.t = std::clamp(u - fl, 0.0, 1.0);
+  return sp;
+}
+
+void PencilAirlight::ensureSpoke(int s) const {
+  std::atomic<int>& st = state_[static_cast<std::size_t>(s)];
+  if (st.load(std::memory_order_acquire) == 2) return;
+  int expected = 0;
+  if (st.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) {
+    sampleSpoke(s);
+    st.store(2, std::memory_order_release);
+    return;
+  }
+  // Another thread samples it: a spoke takes ~10–30 µs.
+  while (st.load(std::memory_order_acquire) != 2) std::this_thread::yield();
+}
+
+void PencilAirlight::sampleSpoke(int s) const {
+  std::vector<Piece>& out = pieces_[static_cast<std::size_t>(s)];
+  const AirlightEvaluator& ev = *lamp_;
+  const Profile& profile = *ev.lamp().profile;
+  const double phi = kTwoPi * s / spokeCount_ - kPi;
+  // The spoke's plane in the lamp frame: ψ = 0 points from the lamp to the eye, ψ grows
+  // towards the side the spoke's rays leave on (azimuth φ), ψ = π points away from the eye.
+  const Vec3 u = ev.lampFromWorld_ * (-e0_);
+  const Vec3 v = ev.lampFromWorld_ * (std::cos(phi) * e1_ + std::sin(phi) * e2_);
+  auto intensity = [&](double psi) { return profile.intensity(std::cos(psi) * u + std::sin(psi) * v); };
+
+  // Breakpoints as in the accurate method: the profile's kinks (spot rings, feature lines of
+  // tabulated data) and, for tabulated data, the edge of the support cone outside which I = 0.
+  std::vector<double> bp{0.0, kPi};
+  const bool tabulated = std::holds_alternative<TabulatedProfile>(profile.model());
+  if (tabulated) {
+    const double sup = profile.supportHalfAngle();
+    if (sup < kPi) {
+      const double x = u.x, y = v.x, r = std::hypot(x, y), cs = std::cos(sup);
+      if (r > 1e-15 && std::abs(cs) <= r) {
+        const double centre = std::atan2(y, x), half = std::acos(cs / r);
+        for (double base : {centre - half, centre + half})
+          for (int kk = -1; kk <= 1; ++kk) {
+            const double th = base + kk * kTwoPi;
+            if (th > 0.0 && th < kPi) bp.push_back(th);
+          }
+      }
+    }
+  }
+  profile.appendFeatureKinks(u, v, 0.0, kPi, bp);
+  std::sort(bp.begin(), bp.end());
+
+  const double cosSupport = std::cos(profile.supportHalfAngle());
+  const double maxWidth = radians(options_.piece_deg);
+  out.clear();
+  std::vector<double> cuts;
+  for (std::size_t i = 1; i < bp.size(); ++i) {
+    const double a = bp[i - 1], b = bp[i];
+    if (b - a < 1e-13) continue;
+    const double mid = 0.5 * (a + b);
+    const bool live = tabulated ? (std::cos(mid) * u.x + std::sin(mid) * v.x) >= cosSupport : intensity(mid) > 0.0;
+    if (!live) continue;
+    // Ends just inside the interval: at a kink I is continuous for spot edges, tabulated data
+    // may drop to 0 at the edge of its range (as in the accurate method).
+    // Pieces cut at the multiples of `piece_deg` shared by every spoke, so that two spokes'
+    // pieces mostly coincide and a ray blends them without extra G lookups (integrate()).
+    const double ia = intensity(a + 1e-12 * (b - a)), ib = intensity(b - 1e-12 * (b - a));
+    const bool constant = !tabulated && ia == ib && ia == intensity(mid);  // spot: between rings
+    cuts.clear();
+    cuts.push_back(a);
+    if (!constant)
+      for (double g = (std::floor(a / maxWidth) + 1.0) * maxWidth; g < b - 1e-9; g += maxWidth) cuts.push_back(g);
+    cuts.push_back(b);
+    double iPrev = ia;
+    const int pieces = static_cast<int>(cuts.size()) - 1;
+    for (int k = 0; k < pieces; ++k) {
+      const double pa = cuts[static_cast<std::size_t>(k)], pb = cuts[static_cast<std::size_t>(k) + 1], pm = 0.5 * (pa + pb);
+      const double hw = 0.5 * (pb - pa);
+      const double im = intensity(pm);
+      const double iNext = k + 1 == pieces ? ib : intensity(pb);
+      Piece pc{pa, pb, pm, im, 0.0, 0.0};
+      if (hw > 1e-12) {
+        pc.c1 = (iNext - iPrev) / (2 * hw);
+        pc.c2 = (iPrev - 2 * im + iNext) / (2 * hw * hw);
+      }
+      out.push_back(pc);
+      iPrev = iNext;
+    }
+  }
+}
+
+void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n, double* out,
+                                        double* intensityOut) const {
+  std::fill(out, out + n, 0.0);
+  if (intensityOut) std::fill(intensityOut, intensityOut + n, 0.0);
+  if (negligible_) return;
+  const AirlightEvaluator& ev = *lamp_;
+  const SpokePair sp = spokesOf(direction);
+  const double c = glm::dot(direction, e0_);               // cos α
+  const double sa = glm::length(direction - c * e0_);      // sin α
+  const double kt = ev.medium().extinction_per_m;
+  const double h = distance_ * sa, p = distance_ * c;      // eq. (3): lamp–ray distance, foot
+  const detail::GMomentTable& g = *ev.tables_->g;
+  if (sp.s0 < 0 || !(h > 1e-9) || kt * h > g.kMax()) {
+    // Per ray: the eye at the lamp, a ray through the lamp, or beyond the G table.
+    ev.evaluateCumulative(Ray{eye_, direction, 0.0}, distances, n, out);
+    if (intensityOut)
+      for (std::size_t m = 0; m < n; ++m) {
+        if (std::isinf(distances[m]) || !(distances[m] > 0.0)) continue;
+        const Vec3 w = eye_ + distances[m] * direction - ev.lamp().position_m;
+        const double r = glm::length(w);
+        if (r > 1e-12) intensityOut[m] = ev.lamp().profile->intensity(ev.lampFromWorld_ * (w / r));
+      }
+    return;
+  }
+  const double alpha = std::atan2(sa, c);
+  const double psiFoot = kHalfPi - alpha;   // ψ of the foot of the perpendicular: θ = ψ − ψF
+  const double psiEnd = kPi - alpha;        // ψ at infinity along the ray
+  const detail::GMomentTable::KWeights kw = g.kWeights(kt * h);
+  // ψ of each distance (θ = atan((d − p)/h), eq. 3), ascending; at most a few per call in the
+  // image path, up to the view tables' node count otherwise.
+  constexpr std::size_t kStack = 64;
+  double psiStack[kStack];
+  std::vector<double> heap;
+  double* psi = psiStack;
+  if (n > kStack) {
+    heap.resize(n);
+    psi = heap.data();
+  }
+  for (std::size_t m = 0; m < n; ++m)
+    psi[m] = distances[m] > 0.0 ? (std::isinf(distances[m]) ? kHalfPi : std::atan2(distances[m] - p, h)) + psiFoot : -1.0;
+  // The two spokes either side of the ray's azimuth, blended linearly.
+  ensureSpoke(sp.s0);
+  ensureSpoke(sp.s1);
+  integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi, n, out, intensityOut);
+  const double scale = ev.medium().albedo * kt / h * std::exp(-kt * p);
+  for (std::size_t m = 0; m < n; ++m) out[m] = distances[m] > 0.0 ? scale * out[m] : 0.0;
+}
+
+double PencilAirlight::evaluate(const Vec3& direction, double distance_m) const {
+  double out = 0.0;
+  evaluateCumulative(direction, &distance_m, 1, &out);
+  return out;
+}
+
+void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights,
+                               const double* psi, std::size_t n, double* out, double* intensityOut) const {
+  // ∫ G(k, θ) I(ψ) dθ from the eye (ψ = 0) to each ψ[m], I = (1 − t) I_s0 + t I_s1 with I_s
+  // each spoke's quadratic pieces, and G through the exact cumulative moments T_q (product
+  // integration, as the accurate method). The walk cuts at both spokes' breakpoints; on each
+  // cut the blend is one quadratic, so there is one T lookup per cut. out[m] = 0 where
+  // ψ[m] < 0 (distance ≤ 0).
+  const detail::GMomentTable& g = *lamp_->tables_->g;
+  const auto& kw = *static_cast<const detail::GMomentTable::KWeights*>(kWeights);
+  const std::vector<Piece>& p0 = pieces_[static_cast<std::size_t>(s0)];
+  const std::vector<Piece>& p1 = pieces_[static_cast<std::size_t>(s1)];
+  std::size_t next = 0;
+  for (; next < n && psi[next] < 0.0; ++next) {
+    out[next] = 0.0;
+    if (intensityOut) intensityOut[next] = 0.0;
+  }
+  // The piece of one spoke at ψ = x: its index (or none) and where that state ends.
+  struct Cursor {
+    const std::vector<Piece>* pieces;
+    std::size_t i = 0;
+    const Piece* at(double x, double& until) {
+      while (i < pieces->size() && (*pieces)[i].b <= x) ++i;
+      if (i == pieces->size()) {
+        until = kPi;
+        return nullptr;
+      }
+      const Piece& pc = (*pieces)[i];
+      if (pc.a <= x) {
+        until = pc.b;
+        return &pc;
+      }
+      until = pc.a;  // a gap where I = 0
+      return nullptr;
+    }
+  };
+  Cursor c0{&p0}, c1{&p1};
+  double sum = 0.0, x = 0.0;
+  bool haveT = false;
+  std::array<double, 3> tx{};
+  auto value = [](double i0, double k1, double k2, double thetaC, const std::array<double, 3>& ta,
+                  const std::array<double, 3>& tb) {
+    // ∫ G (i0 + k1 u + k2 u²) dθ, u = θ − θc, from the cumulative moments at both ends.
+    const double d0 = tb[0] - ta[0], d1 = tb[1] - ta[1], d2 = tb[2] - ta[2];
+    const double m1 = d1 - thetaC * d0, m2 = d2 - 2 * thetaC * d1 + thetaC * thetaC * d0;
+    return i0 * d0 + k1 * m1 + k2 * m2;
+  };
+  while (x < psiEnd && next < n) {
+    double b0 = 0.0, b1 = 0.0;
+    const Piece* q0 = c0.at(x, b0);
+    const Piece* q1 = c1.at(x, b1);
+    const double b = std::min({b0, b1, psiEnd});
+    if (!(b > x)) break;
+    if (!q0 && !q1) {
+      // Both dark: distances in here keep the sum.
+      for (; next < n && psi[next] < b; ++next) {
+        out[next] = sum;
+        if (intensityOut) intensityOut[next] = 0.0;
+      }
+      x = b;
+      haveT = false;
+      continue;
+    }
+    // The blend as one quadratic about the cut's centre m: a piece's (i0, c1, c2) about its own
+    // centre pm re-expands with δ = m − pm as (i0 + c1 δ + c2 δ², c1 + 2 c2 δ, c2).
+    const double m = 0.5 * (x + b);
+    double i0 = 0.0, k1 = 0.0, k2 = 0.0;
+    for (const auto& [q, w] : {std::pair{q0, 1.0 - t}, std::pair{q1, t}}) {
+      if (!q || w == 0.0) continue;
+      const double dl = m - q->m;
+      i0 += w * (q->i0 + dl * (q->c1 + dl * q->c2));
+      k1 += w * (q->c1 + 2 * q->c2 * dl);
+      k2 += w * q->c2;
+    }
+    if (!haveT) tx = g.cumulative(kw, x - psiFoot);
+    const double thetaC = m - psiFoot;
+    for (; next < n && psi[next] < b; ++next) {
+      out[next] = sum + value(i0, k1, k2, thetaC, tx, g.cumulative(kw, psi[next] - psiFoot));
+      if (intensityOut) {
+        const double u = psi[next] - m;
+        intensityOut[next] = std::max(0.0, i0 + u * (k1 + u * k2));
+      }
+    }
+    const std::array<double, 3> tb = g.cumulative(kw, b - psiFoot);
+    sum += value(i0, k1, k2, thetaC, tx, tb);
+    tx = tb;
+    haveT = true;
+    x = b;
+  }
+  for (; next < n; ++next) {
+    out[next] = sum;
+    if (intensityOut) intensityOut[next] = 0.0;
+  }
+}
+
+}  // namespace fogbeam
