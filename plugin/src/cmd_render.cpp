@@ -24,6 +24,7 @@ struct RenderOptions {
   double exposure = 0.0;
   int coarseStep = SubsamplingOptions{}.coarse_step;
   double tolerance = SubsamplingOptions{}.rel_tolerance;
+  std::string movingLamps = "pencil";
   unsigned threads = 0;
 };
 
@@ -72,7 +73,9 @@ int run(const RenderOptions& o) {
   surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
   t0 = Clock::now();
-  auto evaluator = AirlightImageEvaluator::build(*scene, *method, {}, o.threads);
+  FastPathOptions fast;
+  fast.moving_lamps = o.movingLamps == "per-ray" ? MovingLampPath::PerRay : MovingLampPath::Pencil;
+  auto evaluator = AirlightImageEvaluator::build(*scene, *method, {}, o.threads, fast);
   if (!evaluator) {
     std::fprintf(stderr, "fogbeam render: %s\n", evaluator.error().message.c_str());
     return 2;
@@ -136,6 +139,9 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--png", o->png, "also write the composite tone-mapped to 8-bit sRGB PNG");
   sub->add_option("--method", o->method, "airlight method: seed | accurate | reference (default accurate)");
   sub->add_flag("--full", o->full, "evaluate every pixel (no adaptive subsampling)");
+  sub->add_option("--moving-lamps", o->movingLamps,
+                  "measured and spot lamps fixed in the world (not mount = \"vehicle\"): pencil (default) | per-ray")
+      ->check(CLI::IsMember({"pencil", "per-ray"}));
   sub->add_option("--exposure", o->exposure,
                   "PNG exposure in EV: x = L * 2^EV / (1 cd/m2), Reinhard x/(1+x), sRGB (default 0: 1 cd/m2 = mid-grey)");
   sub->add_option("--coarse-step", o->coarseStep, "subsampling: initial block size in pixels (default 8)")

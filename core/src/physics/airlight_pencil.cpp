@@ -23,8 +23,9 @@ Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, cons
                                              const PencilOptions& options) {
   if (lamp.method() != AirlightMethod::Accurate)
     return Error{"pencil airlight: the lamp's evaluator must use the accurate method"};
-  if (!(options.spokes >= 8) || !(options.piece_deg > 0.0 && options.piece_deg <= 45.0))
-    return Error{"pencil airlight: need spokes >= 8 and 0 < piece_deg <= 45"};
+  if (!(options.spokes >= 8) || !(options.piece_deg > 0.0 && options.piece_deg <= 45.0) ||
+      !(options.merge_tolerance >= 0.0 && options.merge_tolerance < 1.0))
+    return Error{"pencil airlight: need spokes >= 8, 0 < piece_deg <= 45 and 0 <= merge_tolerance < 1"};
   PencilAirlight p;
   p.lamp_ = &lamp;
   p.options_ = options;
@@ -145,6 +146,54 @@ void PencilAirlight::sampleSpoke(int s) const {
       out.push_back(pc);
       iPrev = iNext;
     }
+  }
+  mergeSmoothPieces(out);
+}
+
+void PencilAirlight::mergeSmoothPieces(std::vector<Piece>& pieces) const {
+  // Where I is smooth, two neighbouring grid pieces are as well described by one quadratic
+  // through their outer ends and their common end: merge them when that quadratic predicts
+  // both pieces' middle samples within `merge_tolerance` × the spoke's peak, and only within
+  // cells of a doubling grid (2w, 4w, … aligned at 0), so that neighbouring spokes merge alike
+  // and a ray's blend of two spokes still finds their cuts mostly shared. Fewer pieces, fewer
+  // G look-ups per ray: they are what a ray costs.
+  if (options_.merge_tolerance <= 0.0 || pieces.size() < 2) return;
+  double peak = 0.0;
+  for (const Piece& p : pieces) peak = std::max(peak, std::abs(p.i0));
+  const double tol = options_.merge_tolerance * peak;
+  const double w = radians(options_.piece_deg);
+  auto at = [](const Piece& p, double x) {
+    const double u = x - p.m;
+    return p.i0 + u * (p.c1 + u * p.c2);
+  };
+  std::vector<Piece> merged;
+  for (double cell = 2.0 * w; cell <= kPi + 1e-9; cell *= 2.0) {
+    merged.clear();
+    bool any = false;
+    for (std::size_t i = 0; i < pieces.size(); ++i) {
+      if (i + 1 < pieces.size()) {
+        const Piece& p = pieces[i];
+        const Piece& q = pieces[i + 1];
+        // Same doubling cell, contiguous, both of the cell's halves.
+        const double c0 = std::floor(p.a / cell + 1e-9) * cell;
+        const bool aligned = std::abs(p.a - c0) < 1e-9 && std::abs(q.b - (c0 + cell)) < 1e-9 &&
+                             std::abs(p.b - q.a) < 1e-12;
+        if (aligned) {
+          const double ia = at(p, p.a), im = at(p, p.b), ib = at(q, q.b);
+          const double hw = 0.5 * (q.b - p.a), mid = p.b;
+          Piece r{p.a, q.b, mid, im, (ib - ia) / (2 * hw), (ia - 2 * im + ib) / (2 * hw * hw)};
+          if (std::abs(at(r, p.m) - p.i0) <= tol && std::abs(at(r, q.m) - q.i0) <= tol) {
+            merged.push_back(r);
+            ++i;
+            any = true;
+            continue;
+          }
+        }
+      }
+      merged.push_back(pieces[i]);
+    }
+    pieces.swap(merged);
+    if (!any) break;
   }
 }
 

@@ -17,6 +17,7 @@
 // The per-spoke pieces follow the accurate method: breakpoints at the profile's feature kinks
 // and the edge of its support cone, and at the multiples of `piece_deg` (shared by all spokes,
 // so that a blend of two spokes costs one pass); quadratic through both ends and the middle.
+// Where I is smooth, neighbouring pieces merge (`merge_tolerance`).
 //
 // Units: metres, radians inside, degrees in options, cd, cd/m².
 // Thread-safety: evaluate() and evaluateCumulative() may run from any number of threads at
@@ -35,7 +36,10 @@ namespace fogbeam {
 
 struct PencilOptions {
   int spokes = 1440;       ///< azimuths about the eye→lamp axis (0.25° apart)
-  double piece_deg = 2.0;  ///< widest quadratic piece of I along a spoke's circle, degrees
+  double piece_deg = 2.0;  ///< quadratic pieces of I along a spoke's circle, degrees
+  /// Neighbouring pieces merge (on a doubling grid) where one quadratic predicts both within
+  /// this fraction of the spoke's peak intensity; 0 = never.
+  double merge_tolerance = 3e-4;
 };
 
 class PencilAirlight {
@@ -93,6 +97,7 @@ class PencilAirlight {
   [[nodiscard]] SpokePair spokesOf(const Vec3& direction) const noexcept;
   void ensureSpoke(int s) const;
   void sampleSpoke(int s) const;
+  void mergeSmoothPieces(std::vector<Piece>& pieces) const;
   void integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights, const double* psi,
                  std::size_t n, double* out, double* intensityOut) const;
 
