@@ -3,6 +3,7 @@ auditor that reads every slot of a channel and checks each copy for tearing, and
 memory of a process."""
 import hashlib
 import struct
+import time
 
 from fogbeam_reader import FogbeamReader
 
@@ -14,10 +15,24 @@ class FrameAuditor:
     several times while it stays in its slot (polls are ~10 times faster than the frame rate),
     and every copy of frame N must equal, byte for byte (metadata and pixels), the first copy
     of frame N. A copy that mixed two frames would differ. It also checks that frame N sits in
-    slot (N - 1) mod slots (the writer fills the slot after the last one written)."""
+    slot (N - 1) mod slots (the writer fills the slot after the last one written).
 
-    def __init__(self, reader: FogbeamReader):
+    Missed frames: the service numbers its frames 1, 2, 3, … without gaps, so a frame number the
+    auditor never saw was published and overwritten before a poll read it. That takes the writer
+    `slots` periods after the frame; with polls `stall_s` (2 periods) apart or closer, a paced
+    writer cannot do it. A frame missed across a poll interval longer than `stall_s` was lost by
+    the reader (this Python process descheduled on a loaded machine): counted in
+    `missed_reader_stalled`. One missed across a shorter interval means the writer burst or a slot
+    went unread: counted in `missed_unexplained`, which the tests require to be 0."""
+
+    def __init__(self, reader: FogbeamReader, period_s=1.0 / 60.0):
         self.r = reader
+        self.stall_s = 2.0 * period_s
+        self.last_poll = None
+        self.max_frame = None
+        self.missed_reader_stalled = 0   # frames lost while the reader did not poll for > stall_s
+        self.missed_unexplained = 0      # frames lost between polls closer than stall_s
+        self.longest_poll_gap_s = 0.0
         self.digests = {}       # frame -> sha1 of its first accepted copy (the last 64 frames kept)
         self.frames = {}        # frame -> metadata of its first accepted copy (caller may prune)
         self.copies = 0         # accepted copies
@@ -29,6 +44,10 @@ class FrameAuditor:
     def poll(self):
         """Reads each slot once; returns the frame numbers seen for the first time."""
         r, m = self.r, self.r._m
+        now = time.monotonic()
+        interval = 0.0 if self.last_poll is None else now - self.last_poll
+        self.last_poll = now
+        self.longest_poll_gap_s = max(self.longest_poll_gap_s, interval)
         new = []
         for slot in range(r.slots):
             base = r.first_slot + slot * r.stride
@@ -55,11 +74,22 @@ class FrameAuditor:
                 self.misplaced += 1
             self.frames[frame] = meta
             new.append(frame)
+        for frame in sorted(new):
+            if self.max_frame is not None and frame > self.max_frame + 1:
+                lost = frame - self.max_frame - 1
+                if interval > self.stall_s:
+                    self.missed_reader_stalled += lost
+                else:
+                    self.missed_unexplained += lost
+            if self.max_frame is None or frame > self.max_frame:
+                self.max_frame = frame
         return new
 
     def summary(self):
         return (f"{self.copies} copies accepted, {self.compared} compared with an earlier copy of the same frame, "
-                f"{self.torn} torn, {self.retries} refused by the seqlock, {self.misplaced} in the wrong slot")
+                f"{self.torn} torn, {self.retries} refused by the seqlock, {self.misplaced} in the wrong slot; frames "
+                f"missed: {self.missed_unexplained} unexplained, {self.missed_reader_stalled} while this reader was "
+                f"descheduled (longest poll gap {self.longest_poll_gap_s * 1000:.0f} ms)")
 
 
 def rss_kib(pid):

@@ -8,7 +8,9 @@ Asserts:
     allocator arenas filled) the median of the last 10 samples may exceed the median of the first
     10 by at most RSS_BOUND_KIB (a leak of 1 KiB per second would exceed 1 MiB in 100 s);
   * no frame missed: every slot read every ~2 ms, every frame number from the first seen to the
-    last is seen (gaps counted, 0 required); the frame rate over the run is >= 54 fps (90 % of
+    last is seen; a gap is allowed only where this reader itself did not poll for more than two
+    frame periods (descheduled on a loaded machine: counted and printed, at most 1 per 10 000
+    frames), never between closer polls (FrameAuditor); the frame rate over the run is >= 54 fps (90 % of
     60 Hz: a frame the loop skips because it fell behind gets no number, so this bounds the
     skipped deadlines; the machine is shared and loaded, the figure is printed);
   * no torn frame: every copy of a frame equals its first copy (reliability_lib.FrameAuditor);
@@ -87,14 +89,16 @@ try:
     print(f"soak {DURATION_S:.0f} s at 60 Hz (warm-up {WARMUP_S:.0f} s): resident memory {rss[0][1]} KiB at start, "
           f"{first:.0f} KiB after the warm-up, {last:.0f} KiB at the end: growth {growth:+.0f} KiB "
           f"(bound {RSS_BOUND_KIB}), peak {max(k for _, k in rss)} KiB, {len(rss)} samples")
-    print(f"  frames: {len(frames)} read ({frames[0]}..{frames[-1]}), {missing} missed, {fps:.2f} fps; publish "
+    print(f"  frames: {len(frames)} read ({frames[0]}..{frames[-1]}), {missing} not read ({auditor.missed_unexplained} "
+          f"unexplained, {auditor.missed_reader_stalled} while the reader was descheduled), {fps:.2f} fps; publish "
           f"interval p50 {intervals[len(intervals) // 2] * 1000:.1f} ms, p99 {intervals[int(0.99 * len(intervals))] * 1000:.1f} "
           f"ms, max {intervals[-1] * 1000:.1f} ms, {late} over 2 periods (33 ms)")
     print(f"  reads: {auditor.summary()}")
     print(f"  UDP: {udp['datagrams']} datagrams, {udp['applied']} applied, dropped {udp['dropped']}; traffic drawn "
           f"{dict(sorted(traffic_counts.items()))}; light states {len(lights)}")
     assert auditor.torn == 0 and auditor.misplaced == 0, auditor.summary()
-    assert missing == 0, f"{missing} frames missed"
+    assert auditor.missed_unexplained == 0, f"{missing} frames missed: {auditor.summary()}"
+    assert missing == auditor.missed_reader_stalled and missing <= len(frames) // 10000, auditor.summary()
     assert fps >= 54.0, f"{fps:.2f} fps over the soak (60 Hz cab)"
     assert growth <= RSS_BOUND_KIB, f"resident memory grew {growth:.0f} KiB after the warm-up: {rss}"
     assert udp["applied"] == udp["datagrams"] and not udp["dropped"], udp
