@@ -37,6 +37,11 @@ from fogbeam_testlib import attach, free_port, request_status  # noqa: E402
 from reliability_lib import FrameAuditor  # noqa: E402
 
 PERIOD_S = 1.0 / 60.0  # the test cab's frame period
+FIRST_FRAME_S = 300  # the first frame builds the tables: seconds here, minutes under -O0 + ASan
+# Frame rate the pace checks require (Hz). 50 for the optimised build (the cab runs at 60 Hz);
+# scripts/asan.sh lowers it: an -O0 + ASan serve renders the cab at ~15 fps on the 2-core machine,
+# and the time bounds below then use the measured period instead of 1/60 s.
+MIN_FPS = float(os.environ.get("FOGBEAM_TEST_MIN_FPS", "50"))
 LOW, HIGH, FOG = 0x2, 0x4, 0x100  # docs/protocol.md light bits (front fog as VTD: 0x100)
 procs = []
 
@@ -103,7 +108,7 @@ while True:
 def reader_killed():
     prefix = f"ctest-fault-rk-{os.getpid()}-"
     p = serve(prefix, "--udp-port", "0", "--status-port", "0")
-    reader = attach(prefix + "main", p, first_frame=True)
+    reader = attach(prefix + "main", p, timeout_s=FIRST_FRAME_S, first_frame=True)
     auditor = FrameAuditor(reader)
     watch(auditor, 1.0)  # settle: the first frames build the tables
     auditor.frames.clear()
@@ -130,14 +135,14 @@ def reader_killed():
     frames, fps, longest = pace(auditor.frames.values())
     assert auditor.torn == 0 and auditor.misplaced == 0, auditor.summary()
     assert auditor.missed_unexplained == 0, f"frames lost while readers were killed: {auditor.summary()}"
-    assert fps > 50.0, f"{fps:.1f} fps while readers were killed (60 Hz cab)"
-    assert longest < 0.25, f"frames stopped for {longest * 1000:.0f} ms while readers were killed"
+    assert fps > MIN_FPS, f"{fps:.1f} fps while readers were killed (60 Hz cab)"
+    assert longest < max(0.25, 4.0 / fps), f"frames stopped for {longest * 1000:.0f} ms while readers were killed"
     # A new reader after the kills: whole frames, each checked.
     fresh = FogbeamReader(prefix + "main")
     a2 = FrameAuditor(fresh)
     watch(a2, 1.0)
     meta, _ = fresh.latest()
-    assert a2.torn == 0 and a2.compared > 0 and len(a2.frames) >= 40, a2.summary()
+    assert a2.torn == 0 and a2.compared > 0 and len(a2.frames) >= 0.8 * MIN_FPS, a2.summary()
     assert a2.missed_unexplained == 0, f"new reader: {a2.summary()}"
     fresh.close()
     reader.close()
@@ -152,7 +157,7 @@ def writer_restart():
     prefix = f"ctest-fault-wr-{os.getpid()}-"
     path = f"/dev/shm/fogbeam.{prefix}main"
     p1 = serve(prefix, "--udp-port", "0", "--status-port", "0")
-    r1 = attach(prefix + "main", p1, first_frame=True)
+    r1 = attach(prefix + "main", p1, timeout_s=FIRST_FRAME_S, first_frame=True)
     a1 = FrameAuditor(r1)
     watch(a1, 1.0)
     gen1, pid1 = r1.generation, p1.pid
@@ -177,7 +182,7 @@ def writer_restart():
     r1.close()
     t_restart = time.monotonic()
     p2 = serve(prefix, "--udp-port", "0", "--status-port", "0")
-    r2 = attach(prefix + "main", p2, first_frame=True)
+    r2 = attach(prefix + "main", p2, timeout_s=FIRST_FRAME_S, first_frame=True)
     t_first = time.monotonic()
     a2 = FrameAuditor(r2)
     watch(a2, 1.5)
@@ -185,7 +190,7 @@ def writer_restart():
     assert min(a2.frames) <= 20, f"the new generation's frames start at {min(a2.frames)} (expected from 1)"
     assert a2.torn == 0 and a2.misplaced == 0 and a2.missed_unexplained == 0, a2.summary()
     frames, fps, longest = pace(a2.frames.values())
-    assert fps > 50.0, f"{fps:.1f} fps after the restart"
+    assert fps > MIN_FPS, f"{fps:.1f} fps after the restart"
     r2.close()
     out = stop(p2)
     m = re.search(r"shm: replacing stale segment (\S+) \(writer pid (\d+) gone\)", out)
@@ -204,7 +209,7 @@ def host_silent():
     port, status_port = free_port(), free_port()
     p = serve(prefix, "--udp-port", str(port), "--status-port", str(status_port),
               "--set", f"input.udp.traffic_timeout_s={timeout_s}")
-    reader = attach(prefix + "main", p, first_frame=True)
+    reader = attach(prefix + "main", p, timeout_s=FIRST_FRAME_S, first_frame=True)
     auditor = FrameAuditor(reader)
     tmp = tempfile.mkdtemp(prefix="fogbeam-fault-")
 
@@ -237,15 +242,16 @@ def host_silent():
     last_with = with_car[-1]["publish_ns"] * 1e-9 - t_last
     gone_after = without[0]["publish_ns"] * 1e-9 - t_last
     assert all(m["traffic_count"] == 0 for m in held if m["frame"] > without[0]["frame"]), "the car came back"
+    after = [m for m in metas if m["publish_ns"] * 1e-9 > t_stop]
+    frames, fps, longest = pace(after)
+    period = max(PERIOD_S, 1.0 / fps)
     # Gone within traffic_timeout_s + 2 frame periods + 100 ms of scheduling on a loaded machine,
     # and not before the timeout (minus one frame: the car's last update may precede the ego's).
-    assert timeout_s - PERIOD_S <= gone_after <= timeout_s + 2 * PERIOD_S + 0.1, \
+    assert timeout_s - period <= gone_after <= timeout_s + 2 * period + 0.1, \
         f"the car disappeared {gone_after:.3f} s after the last update (traffic_timeout_s {timeout_s})"
     positions = {tuple(m["position_m"]) for m in held}
     assert len(positions) == 1, f"the ego moved after the host stopped: {positions}"
-    after = [m for m in metas if m["publish_ns"] * 1e-9 > t_stop]
-    frames, fps, longest = pace(after)
-    assert fps > 50.0 and longest < 0.25 and auditor.missed_unexplained == 0, (fps, longest, auditor.summary())
+    assert fps > MIN_FPS and longest < max(0.25, 4.0 / fps) and auditor.missed_unexplained == 0, (fps, longest, auditor.summary())
     assert auditor.torn == 0, auditor.summary()
     assert status["traffic"] == 0 and status["traffic_expired"] >= 1, status
     assert status["ego_age_s"] > 1.0 and status["input"].startswith("udp 127.0.0.1:"), status
@@ -285,7 +291,7 @@ def can_silent():
     can_port = free_port()
     p = serve(prefix, "--udp-port", "0", "--status-port", "0", "--set", 'input.can.source="cannelloni"',
               "--set", f"input.can.cannelloni_port={can_port}", "--set", f'input.can.mapping="{MAPPING}"')
-    reader = attach(prefix + "main", p, first_frame=True)
+    reader = attach(prefix + "main", p, timeout_s=FIRST_FRAME_S, first_frame=True)
     auditor = FrameAuditor(reader)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     # 2 s of the stalk at high beam + front fog, LOW off (so that every bit differs from the
@@ -315,11 +321,11 @@ def can_silent():
     assert max(held) < first_fallback, "the CAN state came back after the fallback"
     # Held until hold_s, fallen back by hold_s + the decoder's 50 ms tick + 2 frame periods + 100 ms
     # of scheduling on a loaded machine.
-    assert max(held) >= hold_s - 0.05, f"the signals were held only {max(held):.3f} s (hold_s {hold_s})"
-    assert hold_s <= first_fallback <= hold_s + 0.05 + 2 * PERIOD_S + 0.1, \
-        f"the fallback came {first_fallback:.3f} s after the last CAN frame (hold_s {hold_s})"
+    assert max(held) >= hold_s - max(0.05, 1.0 / MIN_FPS), f"the signals were held only {max(held):.3f} s (hold_s {hold_s})"
     frames, fps, longest = pace(metas)
-    assert fps > 50.0 and auditor.missed_unexplained == 0 and auditor.torn == 0, (fps, auditor.summary())
+    assert hold_s <= first_fallback <= hold_s + 0.05 + 2 * max(PERIOD_S, 1.0 / fps) + 0.1, \
+        f"the fallback came {first_fallback:.3f} s after the last CAN frame (hold_s {hold_s})"
+    assert fps > MIN_FPS and auditor.missed_unexplained == 0 and auditor.torn == 0, (fps, auditor.summary())
     reader.close()
     out = stop(p)
     logs = re.findall(r"can: ([a-z ]+?) signal (\w+) silent for more than 0\.25 s: falling back to (on|off)", out)
