@@ -16,7 +16,7 @@ cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz -j "$(nproc)"
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(udp_message dbc candump cannelloni ies eulumdat csv_profile scene scenario esmini_csv service_config can_config)
+  targets=(udp_message dbc candump cannelloni ies eulumdat csv_profile scene scenario esmini_csv service_config can_config gltf)
 fi
 findings=build/fuzz/findings
 rm -rf "$findings" build/fuzz/scratch

@@ -67,6 +67,18 @@ class FogbeamReader:
     def close(self):
         self._m.close()
 
+    def writer_alive(self):
+        """False when the writer's pid (header offset 88) no longer exists: a killed writer is seen
+        at once, not after the heartbeat timeout. A pid of another user's process (EPERM) is alive."""
+        pid = struct.unpack_from("<I", self._m, 88)[0]
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:
+            pass
+        return True
+
     def _u64(self, off):
         return struct.unpack_from("<Q", self._m, off)[0]
 
@@ -77,6 +89,8 @@ class FogbeamReader:
         state = struct.unpack_from("<I", m, 92)[0]
         beat = self._u64(96)
         if state == WRITER_CLOSED or (time.clock_gettime_ns(time.CLOCK_MONOTONIC) - beat) * 1e-9 > heartbeat_timeout_s:
+            raise WriterGone(self.path)
+        if not self.writer_alive():  # docs/shm.md: a writer whose pid is gone is gone at once
             raise WriterGone(self.path)
         for _ in range(attempts):
             latest = self._u64(104)

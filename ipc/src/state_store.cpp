@@ -90,6 +90,7 @@ std::size_t StateStore::expire(Clock::time_point now) {
   update([&](SimSnapshot& n) {
     purged = static_cast<std::size_t>(std::erase_if(n.traffic, [&](const TrafficEntry& e) { return !n.live(e, now); }));
   });
+  expired_.fetch_add(purged, std::memory_order_relaxed);
   return purged;
 }
 

@@ -80,6 +80,7 @@ struct StatusBoard {
   double total_p50 = 0, total_p95 = 0, surface_p50 = 0, airlight_p50 = 0, latency_p50 = 0, latency_p95 = 0;
   double ego_age_s = -1, lamps_age_s = -1, env_age_s = -1;
   std::uint32_t traffic = 0;
+  std::uint64_t traffic_expired = 0;  ///< traffic objects removed for want of updates, since start
   bool tables_pending = false;
   std::string input = "none";
 
@@ -93,7 +94,8 @@ struct StatusBoard {
       << ", \"airlight_ms_p50\": " << airlight_p50 << ", \"latency_ms_p50\": " << latency_p50
       << ", \"latency_ms_p95\": " << latency_p95 << ", \"input\": \"" << input << "\", \"ego_age_s\": " << ego_age_s
       << ", \"lamps_age_s\": " << lamps_age_s << ", \"environment_age_s\": " << env_age_s
-      << ", \"traffic\": " << traffic << ", \"tables_pending\": " << (tables_pending ? "true" : "false")
+      << ", \"traffic\": " << traffic << ", \"traffic_expired\": " << traffic_expired
+      << ", \"tables_pending\": " << (tables_pending ? "true" : "false")
       << ", \"udp\": {\"datagrams\": " << udp.datagrams << ", \"applied\": " << udp.applied << ", \"dropped\": {";
     bool first = true;
     for (std::size_t r = 0; r < ipc::kDropReasonCount; ++r) {
@@ -104,6 +106,53 @@ struct StatusBoard {
     o << "}}}";
     return o.str();
   }
+};
+
+/// A host that stops sending (issue 6): frames go on with the last state; traffic not updated for
+/// traffic_timeout_s is purged from the store (by the UDP receiver when its socket is idle, and
+/// here once per frame, which also covers a socket kept busy by other senders), so the snapshot
+/// holds only live objects whatever was ever sent. Both are logged: the silence once per
+/// transition, the purges at most once per second (a count), so that a silent or flapping host
+/// cannot flood the log.
+class HostWatch {
+ public:
+  /// Seconds without an ego-state message before the host counts as silent: 1 s is 60 frames of
+  /// a 60 Hz host and well above any scheduling hiccup of a live one.
+  static constexpr double kSilentS = 1.0;
+
+  HostWatch(ipc::StateStore& store, double trafficTimeout_s) : store_(store), trafficTimeout_s_(trafficTimeout_s) {}
+
+  /// Once per frame, with the frame's snapshot; `scenario`: a scenario is playing (not a host).
+  void check(const ipc::SimSnapshot& snap, Clock::time_point now, bool scenario) {
+    (void)store_.expire(now);
+    const std::uint64_t expired = store_.expiredTotal();
+    if (expired > logged_ && now - lastExpiryLog_ >= std::chrono::seconds(1)) {
+      spdlog::warn("serve: {} traffic object(s) removed: not updated for {} s (input.udp.traffic_timeout_s)",
+                   expired - logged_, trafficTimeout_s_);
+      logged_ = expired;
+      lastExpiryLog_ = now;
+    }
+    const ipc::Stamp& ego = snap.ego.stamp;
+    if (scenario || !ego.valid) return;
+    const double age_s = std::chrono::duration<double>(now - ego.received).count();
+    if (age_s > kSilentS && !silent_) {
+      spdlog::warn("serve: no ego state from {} for {:.1f} s: frames go on with the last state", ego.source, age_s);
+      silent_ = true;
+      silentSince_ = ego.received;
+    } else if (age_s <= kSilentS && silent_) {
+      spdlog::info("serve: ego state from {} again after {:.1f} s", ego.source,
+                   std::chrono::duration<double>(ego.received - silentSince_).count());
+      silent_ = false;
+    }
+  }
+
+ private:
+  ipc::StateStore& store_;
+  double trafficTimeout_s_;
+  bool silent_ = false;
+  Clock::time_point silentSince_{};
+  std::uint64_t logged_ = 0;  ///< expired objects already logged
+  Clock::time_point lastExpiryLog_{};
 };
 
 /// Plays a scenario into the store at wall-clock pace until a host's first message (a UDP
@@ -304,6 +353,7 @@ int run(const ServeOptions& o) {
   std::vector<double> totalMs, airMs, surfMs, latencyMs;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / cfg.rate_hz));
   plugin::RenderedFrame out;
+  HostWatch watch(store, cfg.traffic_timeout_s);
   int exitCode = 0;
   while (!gStop.load()) {
     if (o.duration_s > 0.0 && Clock::now() - start > std::chrono::duration<double>(o.duration_s)) break;
@@ -325,6 +375,7 @@ int run(const ServeOptions& o) {
     }
     ++frame;
     const auto now = Clock::now();
+    watch.check(*snap, now, player && player->playing());
     Clock::time_point newest{};
     for (const ipc::Stamp* s : {&snap->ego.stamp, &snap->lamps.stamp, &snap->environment.stamp, &snap->frame_request.stamp})
       if (s->valid) newest = std::max(newest, s->received);
@@ -368,6 +419,7 @@ int run(const ServeOptions& o) {
         board.lamps_age_s = age(snap->lamps.stamp);
         board.env_age_s = age(snap->environment.stamp);
         board.traffic = out.meta.traffic_count;
+        board.traffic_expired = store.expiredTotal();
         board.tables_pending = pending;
         board.input = player && player->playing() ? "scenario" : snap->ego.stamp.valid ? snap->ego.stamp.source : "none";
       }

@@ -78,6 +78,7 @@ TEST(StateStore, StaleObjectsExpireAndTheLimitHolds) {
   EXPECT_EQ(store.expire(later), 3u);
   EXPECT_EQ(store.snapshot()->traffic.size(), 1u);
   EXPECT_EQ(store.expire(later), 0u);
+  EXPECT_EQ(store.expiredTotal(), 3u);  // counted once, for the service log and status reply
 }
 
 // Writers publish (ego.speed, lamps.bending) pairs that are always equal; a reader that ever

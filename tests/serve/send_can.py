@@ -31,13 +31,14 @@ prefix = f"ctest-sendcan-{os.getpid()}-"
 can_port, nobody = free_port(), free_port()
 tmp = tempfile.mkdtemp(prefix="fogbeam-sendcan-")
 log = os.path.join(tmp, "bus.log")
-serve = subprocess.Popen([FOGBEAM, "serve", "--config", CONFIG, "--channel-prefix", prefix, "--duration", "60",
+serve = subprocess.Popen([FOGBEAM, "serve", "--config", CONFIG, "--channel-prefix", prefix, "--duration", "600",
                           "--set", 'input.can.source="cannelloni"', "--set", f"input.can.cannelloni_port={can_port}",
                           "--set", f'input.can.mapping="{MAPPING}"'],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 send = None
 try:
-    reader = attach(prefix + "main", serve)
+    # The first frame builds the tables: seconds here, over a minute in the -O0 + ASan build.
+    reader = attach(prefix + "main", serve, timeout_s=300, first_frame=True)
     send = subprocess.Popen([FOGBEAM, "send", "--scenario", SCENARIO, "--to", f"127.0.0.1:{nobody}", "--rate", "30",
                              "--can-config", MAPPING, "--can-cannelloni", f"127.0.0.1:{can_port}", "--can-candump", log],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -1,4 +1,4 @@
-#include "gltf_mesh.hpp"
+#include <fogbeam/gl/gltf_mesh.hpp>
 
 #include <fogbeam/util/tiny_gltf.hpp>
 
@@ -15,6 +15,10 @@ namespace fogbeam::gl {
 namespace {
 
 using DMat4 = glm::dmat4;
+
+/// Node instances (a node counted once per path from a root) in one file; far above any road
+/// scene (road.glb has 3), low enough that a hostile file cannot loop for hours.
+constexpr std::size_t kMaxNodeInstances = 100'000;
 
 DMat4 nodeMatrix(const tinygltf::Node& node) {
   if (node.matrix.size() == 16) return glm::make_mat4(node.matrix.data());  // column-major, as glTF
@@ -33,6 +37,32 @@ struct Loader {
   std::string file;
   std::vector<Vec3> positions, normals, reflectances;  // world (fogbeam), per triangle corner
   std::size_t skipped = 0;
+  std::size_t nodeVisits = 0;
+
+  /// The first element of an accessor and its stride (bytes), after checking that every element
+  /// of `elementSize` bytes lies inside its buffer view and buffer. The sums are done so that they
+  /// cannot overflow, whatever the file's offsets and counts.
+  Result<std::pair<const unsigned char*, std::size_t>> accessorBytes(const tinygltf::Accessor& acc, std::size_t elementSize,
+                                                                     const std::string& what) const {
+    if (acc.bufferView < 0 || static_cast<std::size_t>(acc.bufferView) >= model.bufferViews.size())
+      return Error{file + ": " + what + ": accessor has no buffer view"};
+    const auto& view = model.bufferViews[static_cast<std::size_t>(acc.bufferView)];
+    if (view.buffer < 0 || static_cast<std::size_t>(view.buffer) >= model.buffers.size())
+      return Error{file + ": " + what + ": buffer view names no buffer"};
+    const auto& buf = model.buffers[static_cast<std::size_t>(view.buffer)];
+    const std::size_t size = buf.data.size();
+    const std::size_t stride = view.byteStride ? view.byteStride : elementSize;
+    if (stride < elementSize) return Error{file + ": " + what + ": byte stride smaller than an element"};
+    if (view.byteOffset > size || view.byteLength > size - view.byteOffset)
+      return Error{file + ": " + what + ": buffer view runs past the end of its buffer"};
+    if (acc.count == 0) return std::pair{buf.data.data(), stride};
+    // The last element ends at byteOffset + stride·(count−1) + elementSize inside the view.
+    const std::size_t room = view.byteLength;
+    if (acc.byteOffset > room || elementSize > room - acc.byteOffset ||
+        (acc.count - 1) > (room - acc.byteOffset - elementSize) / stride)
+      return Error{file + ": " + what + ": accessor runs past the end of its buffer view"};
+    return std::pair{buf.data.data() + view.byteOffset + acc.byteOffset, stride};
+  }
 
   Result<std::vector<glm::dvec3>> readVec3(int accessorIndex, const std::string& what) const {
     if (accessorIndex < 0 || static_cast<std::size_t>(accessorIndex) >= model.accessors.size())
@@ -43,16 +73,13 @@ struct Loader {
     if (acc.sparse.isSparse) return Error{file + ": " + what + ": sparse accessors are not supported"};
     if (acc.bufferView < 0 || static_cast<std::size_t>(acc.bufferView) >= model.bufferViews.size())
       return Error{file + ": " + what + ": accessor has no buffer view"};
-    const auto& view = model.bufferViews[static_cast<std::size_t>(acc.bufferView)];
-    const auto& buf = model.buffers[static_cast<std::size_t>(view.buffer)];
-    const std::size_t stride = view.byteStride ? view.byteStride : 12;
-    const std::size_t start = view.byteOffset + acc.byteOffset;
-    if (acc.count > 0 && start + stride * (acc.count - 1) + 12 > buf.data.size())
-      return Error{file + ": " + what + ": accessor runs past the end of its buffer"};
+    auto bytes = accessorBytes(acc, 12, what);
+    if (!bytes) return bytes.error();
+    const auto [data, stride] = *bytes;
     std::vector<glm::dvec3> out(acc.count);
     for (std::size_t i = 0; i < acc.count; ++i) {
       float v[3];
-      std::memcpy(v, buf.data.data() + start + i * stride, sizeof v);
+      std::memcpy(v, data + i * stride, sizeof v);
       out[i] = {v[0], v[1], v[2]};
     }
     return out;
@@ -75,15 +102,12 @@ struct Loader {
       case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: size = 4; break;
       default: return Error{file + ": " + what + ": indices must be unsigned byte, short or int"};
     }
-    const auto& view = model.bufferViews[static_cast<std::size_t>(acc.bufferView)];
-    const auto& buf = model.buffers[static_cast<std::size_t>(view.buffer)];
-    const std::size_t stride = view.byteStride ? view.byteStride : size;
-    const std::size_t start = view.byteOffset + acc.byteOffset;
-    if (acc.count > 0 && start + stride * (acc.count - 1) + size > buf.data.size())
-      return Error{file + ": " + what + ": index accessor runs past the end of its buffer"};
+    auto bytes = accessorBytes(acc, size, what + ": index");
+    if (!bytes) return bytes.error();
+    const auto [data, stride] = *bytes;
     out.resize(acc.count);
     for (std::size_t i = 0; i < acc.count; ++i) {
-      const unsigned char* p = buf.data.data() + start + i * stride;
+      const unsigned char* p = data + i * stride;
       std::uint32_t v = 0;
       if (size == 1) v = p[0];
       else if (size == 2) { std::uint16_t s; std::memcpy(&s, p, 2); v = s; }
@@ -160,6 +184,9 @@ struct Loader {
   Status addNode(int nodeIndex, const DMat4& parent, int depth) {
     if (nodeIndex < 0 || static_cast<std::size_t>(nodeIndex) >= model.nodes.size()) return Error{file + ": node index out of range"};
     if (depth > 64) return Error{file + ": node hierarchy deeper than 64 (a cycle?)"};
+    // A node may be the child of several: a small file can name 2^64 instances. Bounded.
+    if (++nodeVisits > kMaxNodeInstances)
+      return Error{file + ": more than " + std::to_string(kMaxNodeInstances) + " node instances (shared children)"};
     const auto& node = model.nodes[static_cast<std::size_t>(nodeIndex)];
     const DMat4 m = parent * nodeMatrix(node);
     if (node.mesh >= 0) {
@@ -176,6 +203,20 @@ struct Loader {
   }
 };
 
+Result<MeshData> meshFromModel(const tinygltf::Model& model, const std::string& path);
+
+// Loading from memory reads no other file: a buffer or image URI that is not a data: URI fails.
+bool noFileExists(const std::string&, void*) { return false; }
+std::string noExpand(const std::string& p, void*) { return p; }
+bool noRead(std::vector<unsigned char>*, std::string* err, const std::string& p, void*) {
+  if (err) *err += "external file '" + p + "' not read (glTF from memory: data: URIs and GLB buffers only)\n";
+  return false;
+}
+bool noWrite(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+  if (err) *err += "no writing\n";
+  return false;
+}
+
 }  // namespace
 
 Result<MeshData> loadGltfMesh(const std::string& path) {
@@ -185,8 +226,26 @@ Result<MeshData> loadGltfMesh(const std::string& path) {
   const bool binary = path.size() >= 4 && path.compare(path.size() - 4, 4, ".glb") == 0;
   const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
   if (!ok) return Error{path + ": cannot load glTF: " + (err.empty() ? std::string("unknown error") : err)};
+  return meshFromModel(model, path);
+}
 
-  Loader l{model, path, {}, {}, {}, 0};
+Result<MeshData> loadGltfMeshFromMemory(std::span<const unsigned char> bytes, const std::string& what) {
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  loader.SetFsCallbacks(tinygltf::FsCallbacks{&noFileExists, &noExpand, &noRead, &noWrite, nullptr});
+  std::string err, warn;
+  const bool binary = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  const auto size = static_cast<unsigned int>(std::min<std::size_t>(bytes.size(), std::numeric_limits<unsigned int>::max()));
+  const bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(), size, "")
+                         : loader.LoadASCIIFromString(&model, &err, &warn, reinterpret_cast<const char*>(bytes.data()), size, "");
+  if (!ok) return Error{what + ": cannot load glTF: " + (err.empty() ? std::string("unknown error") : err)};
+  return meshFromModel(model, what);
+}
+
+namespace {
+
+Result<MeshData> meshFromModel(const tinygltf::Model& model, const std::string& path) {
+  Loader l{model, path, {}, {}, {}, 0, 0};
   std::vector<int> roots;
   if (!model.scenes.empty()) {
     const std::size_t s = model.defaultScene >= 0 ? static_cast<std::size_t>(model.defaultScene) : 0;
@@ -226,5 +285,7 @@ Result<MeshData> loadGltfMesh(const std::string& path) {
   }
   return out;
 }
+
+}  // namespace
 
 }  // namespace fogbeam::gl

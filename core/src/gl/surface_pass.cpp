@@ -9,7 +9,7 @@
 
 #include "egl_context.hpp"
 #include "gl_headers.hpp"
-#include "gltf_mesh.hpp"
+#include <fogbeam/gl/gltf_mesh.hpp>
 #include "shader_library.hpp"
 
 #include <glm/gtc/type_ptr.hpp>

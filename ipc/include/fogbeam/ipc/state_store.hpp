@@ -91,6 +91,8 @@ class StateStore {
   /// Purges objects older than the timeout (the frame loop or a receiver calls this now and
   /// then; live() already hides them). Returns how many were purged.
   std::size_t expire(Clock::time_point now);
+  /// Traffic objects purged by expire() since construction (any thread).
+  [[nodiscard]] std::uint64_t expiredTotal() const noexcept { return expired_.load(std::memory_order_relaxed); }
 
   [[nodiscard]] const StateStoreOptions& options() const noexcept { return options_; }
 
@@ -101,6 +103,7 @@ class StateStore {
   StateStoreOptions options_;
   std::mutex writers_;
   std::atomic<std::shared_ptr<const SimSnapshot>> current_;
+  std::atomic<std::uint64_t> expired_{0};  ///< expire() purges, for the log and the status reply
 };
 
 }  // namespace fogbeam::ipc

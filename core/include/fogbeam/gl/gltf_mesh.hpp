@@ -8,12 +8,14 @@
 // Material: the Lambertian reflectance of a primitive is its PBR baseColorFactor.rgb (default 1);
 // textures, metallic/roughness and vertex colours are ignored. Primitives without normals get
 // flat (per-triangle) normals. Only TRIANGLES (mode 4) are drawn; POINTS/LINES are skipped,
-// strips and fans are converted. No GL here: plain data, testable anywhere.
+// strips and fans are converted. No GL here: plain data, testable anywhere; it is its own library
+// (fogbeam_gltf, no GL or EGL), so that the fuzz target `gltf` can run it without a GL context.
 #pragma once
 
 #include <fogbeam/physics/math.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <span>
 #include <string>
 #include <vector>
 
@@ -37,5 +39,9 @@ struct MeshData {
 /// Loads a .gltf (JSON, external or data-URI buffers) or .glb file. Errors name the file and
 /// what is wrong ("road.gltf: mesh 2 primitive 0: POSITION accessor is not VEC3 float").
 [[nodiscard]] Result<MeshData> loadGltfMesh(const std::string& path);
+
+/// The same from bytes in memory: GLB when they start with "glTF", JSON otherwise; `what` names
+/// them in errors. Reads no file: buffers must be data: URIs or the GLB's own chunk.
+[[nodiscard]] Result<MeshData> loadGltfMeshFromMemory(std::span<const unsigned char> bytes, const std::string& what);
 
 }  // namespace fogbeam::gl
