@@ -19,13 +19,18 @@ constexpr double kTwoPi = 2.0 * kPi;
 constexpr double kMaxOpticalDistance = 700.0;
 }  // namespace
 
+Status PencilAirlight::validate(const PencilOptions& options) {
+  if (!(options.spokes >= 8) || !(options.piece_deg > 0.0 && options.piece_deg <= 45.0) ||
+      !(options.merge_tolerance >= 0.0 && options.merge_tolerance < 1.0))
+    return Error{"pencil airlight: need spokes >= 8, 0 < piece_deg <= 45 and 0 <= merge_tolerance < 1"};
+  return Ok{};
+}
+
 Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, const Vec3& eye,
                                              const PencilOptions& options) {
   if (lamp.method() != AirlightMethod::Accurate)
     return Error{"pencil airlight: the lamp's evaluator must use the accurate method"};
-  if (!(options.spokes >= 8) || !(options.piece_deg > 0.0 && options.piece_deg <= 45.0) ||
-      !(options.merge_tolerance >= 0.0 && options.merge_tolerance < 1.0))
-    return Error{"pencil airlight: need spokes >= 8, 0 < piece_deg <= 45 and 0 <= merge_tolerance < 1"};
+  if (Status v = validate(options); !v) return v.error();
   PencilAirlight p;
   p.lamp_ = &lamp;
   p.options_ = options;
@@ -197,10 +202,9 @@ void PencilAirlight::mergeSmoothPieces(std::vector<Piece>& pieces) const {
   }
 }
 
-void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n, double* out,
-                                        double* intensityOut) const {
+void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n,
+                                        double* out) const {
   std::fill(out, out + n, 0.0);
-  if (intensityOut) std::fill(intensityOut, intensityOut + n, 0.0);
   if (negligible_) return;
   const AirlightEvaluator& ev = *lamp_;
   const SpokePair sp = spokesOf(direction);
@@ -212,21 +216,14 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   if (sp.s0 < 0 || !(h > 1e-9) || kt * h > g.kMax()) {
     // Per ray: the eye at the lamp, a ray through the lamp, or beyond the G table.
     ev.evaluateCumulative(Ray{eye_, direction, 0.0}, distances, n, out);
-    if (intensityOut)
-      for (std::size_t m = 0; m < n; ++m) {
-        if (std::isinf(distances[m]) || !(distances[m] > 0.0)) continue;
-        const Vec3 w = eye_ + distances[m] * direction - ev.lamp().position_m;
-        const double r = glm::length(w);
-        if (r > 1e-12) intensityOut[m] = ev.lamp().profile->intensity(ev.lampFromWorld_ * (w / r));
-      }
     return;
   }
   const double alpha = std::atan2(sa, c);
   const double psiFoot = kHalfPi - alpha;   // ψ of the foot of the perpendicular: θ = ψ − ψF
   const double psiEnd = kPi - alpha;        // ψ at infinity along the ray
   const detail::GMomentTable::KWeights kw = g.kWeights(kt * h);
-  // ψ of each distance (θ = atan((d − p)/h), eq. 3), ascending; at most a few per call in the
-  // image path, up to the view tables' node count otherwise.
+  // ψ of each distance (θ = atan((d − p)/h), eq. 3), ascending; one per call in the image path,
+  // more (on the heap beyond 64) from tests.
   constexpr std::size_t kStack = 64;
   double psiStack[kStack];
   std::vector<double> heap;
@@ -240,7 +237,7 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   // The two spokes either side of the ray's azimuth, blended linearly.
   ensureSpoke(sp.s0);
   ensureSpoke(sp.s1);
-  integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi, n, out, intensityOut);
+  integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi, n, out);
   const double scale = ev.medium().albedo * kt / h * std::exp(-kt * p);
   for (std::size_t m = 0; m < n; ++m) out[m] = distances[m] > 0.0 ? scale * out[m] : 0.0;
 }
@@ -252,7 +249,7 @@ double PencilAirlight::evaluate(const Vec3& direction, double distance_m) const 
 }
 
 void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights,
-                               const double* psi, std::size_t n, double* out, double* intensityOut) const {
+                               const double* psi, std::size_t n, double* out) const {
   // ∫ G(k, θ) I(ψ) dθ from the eye (ψ = 0) to each ψ[m], I = (1 − t) I_s0 + t I_s1 with I_s
   // each spoke's quadratic pieces, and G through the exact cumulative moments T_q (product
   // integration, as the accurate method). The walk cuts at both spokes' breakpoints; on each
@@ -263,10 +260,7 @@ void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double 
   const std::vector<Piece>& p0 = pieces_[static_cast<std::size_t>(s0)];
   const std::vector<Piece>& p1 = pieces_[static_cast<std::size_t>(s1)];
   std::size_t next = 0;
-  for (; next < n && psi[next] < 0.0; ++next) {
-    out[next] = 0.0;
-    if (intensityOut) intensityOut[next] = 0.0;
-  }
+  for (; next < n && psi[next] < 0.0; ++next) out[next] = 0.0;
   // The piece of one spoke at ψ = x: its index (or none) and where that state ends.
   struct Cursor {
     const std::vector<Piece>* pieces;
@@ -305,10 +299,7 @@ void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double 
     if (!(b > x)) break;
     if (!q0 && !q1) {
       // Both dark: distances in here keep the sum.
-      for (; next < n && psi[next] < b; ++next) {
-        out[next] = sum;
-        if (intensityOut) intensityOut[next] = 0.0;
-      }
+      for (; next < n && psi[next] < b; ++next) out[next] = sum;
       x = b;
       haveT = false;
       continue;
@@ -326,23 +317,15 @@ void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double 
     }
     if (!haveT) tx = g.cumulative(kw, x - psiFoot);
     const double thetaC = m - psiFoot;
-    for (; next < n && psi[next] < b; ++next) {
+    for (; next < n && psi[next] < b; ++next)
       out[next] = sum + value(i0, k1, k2, thetaC, tx, g.cumulative(kw, psi[next] - psiFoot));
-      if (intensityOut) {
-        const double u = psi[next] - m;
-        intensityOut[next] = std::max(0.0, i0 + u * (k1 + u * k2));
-      }
-    }
     const std::array<double, 3> tb = g.cumulative(kw, b - psiFoot);
     sum += value(i0, k1, k2, thetaC, tx, tb);
     tx = tb;
     haveT = true;
     x = b;
   }
-  for (; next < n; ++next) {
-    out[next] = sum;
-    if (intensityOut) intensityOut[next] = 0.0;
-  }
+  for (; next < n; ++next) out[next] = sum;
 }
 
 }  // namespace fogbeam

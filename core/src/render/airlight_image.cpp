@@ -128,9 +128,7 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
   if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
   if (!st.pencilLamps.empty()) {
     // The pencil's options are checked here, once: an integrator built per frame must not fail.
-    if (auto probe = PencilAirlight::build(e.lamps_[st.pencilLamps[0]], scene.camera.position_m, fast.pencil_options);
-        !probe)
-      return Error{"fast path: " + probe.error().message};
+    if (Status v = PencilAirlight::validate(fast.pencil_options); !v) return Error{"fast path: " + v.error().message};
   }
   st.viewTables.resize(kTablesPerLamp * st.viewLamps.size());
   st.rayGuards.resize(st.viewLamps.size());

@@ -48,36 +48,19 @@ class PencilAirlight {
   /// Errors: another method.
   [[nodiscard]] static Result<PencilAirlight> build(const AirlightEvaluator& lamp, const Vec3& eye,
                                                     const PencilOptions& options = {});
+  /// The option checks of build(), without building anything.
+  [[nodiscard]] static Status validate(const PencilOptions& options);
 
   /// Starts over from a new eye position, and takes the lamp evaluator's current pose (a
   /// moving lamp): spokes are sampled again as needed; their memory is kept.
   void reset(const Vec3& eye);
 
   [[nodiscard]] int spokeCount() const noexcept { return spokeCount_; }
-  /// Samples every spoke that one of `directions` uses (in parallel when `parallelFor` runs
-  /// its jobs on several threads; any callable taking (count, job(index))).
-  template <class ParallelFor>
-  void prepare(const std::vector<Vec3>& directions, ParallelFor&& parallelFor) {
-    std::vector<char> needed(static_cast<std::size_t>(spokeCount_), 0);
-    for (const Vec3& d : directions) {
-      const SpokePair sp = spokesOf(d);
-      if (sp.s0 < 0) continue;
-      needed[static_cast<std::size_t>(sp.s0)] = needed[static_cast<std::size_t>(sp.s1)] = 1;
-    }
-    std::vector<int> list;
-    for (std::size_t s = 0; s < needed.size(); ++s)
-      if (needed[s]) list.push_back(static_cast<int>(s));
-    parallelFor(list.size(), [&](std::size_t i) { ensureSpoke(list[i]); });
-  }
-
   /// L_m (white light, cd/m²) along the ray from the eye in `direction` (unit) up to each of
-  /// `n` ascending distances (metres, +inf allowed), into out[0..n). When `intensityOut` is
-  /// given, the lamp's intensity (cd) towards the ray's point at each distance is written there
-  /// too (0 at +inf), from the same interpolant: the in-scattering integrand's factor I.
+  /// `n` ascending distances (metres, +inf allowed), into out[0..n).
   /// Falls back to the evaluator's own evaluateCumulative where the G table ends (k > k_max,
   /// rays grazing a very distant lamp) and for rays through the lamp.
-  void evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n, double* out,
-                          double* intensityOut = nullptr) const;
+  void evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n, double* out) const;
   /// L_m along one ray up to `distance_m` (+inf = sky).
   [[nodiscard]] double evaluate(const Vec3& direction, double distance_m) const;
 
@@ -99,7 +82,7 @@ class PencilAirlight {
   void sampleSpoke(int s) const;
   void mergeSmoothPieces(std::vector<Piece>& pieces) const;
   void integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights, const double* psi,
-                 std::size_t n, double* out, double* intensityOut) const;
+                 std::size_t n, double* out) const;
 
   const AirlightEvaluator* lamp_ = nullptr;
   PencilOptions options_;
