@@ -4,7 +4,10 @@
 //
 // Per pixel (image x right, y down; camera frame x forward, y left, z up):
 //   isotropic lamps   L = w · e^{−K_t p}/h · [F(k, ζ(q_d)) − F(k, ζ(q_0))]   (Lecocq et al. 2001,
-//                     eq. 3, with the Sun et al. 2005 F table; k = K_t h, q = tan θ)
+//                     eq. 3, with the Sun et al. 2005 F table; k = K_t h, q = tan θ; the row of k
+//                     on the table's pseudo-log axis read off the float's bits); against the sky
+//                     L = w · S(x) / sin γ from the lamp's sky table (x the half-chord to the
+//                     lamp's direction or its opposite: airlight_kernels.hpp, IsoSky)
 //   vehicle lamps     L = bilinear over view directions × cubic Hermite over x = d/(d + D)
 // Output: RGB airlight in cd/m² (linear), A unused. Distances in metres, +inf for the sky.
 // Pixels inside a vehicle lamp's last guard disc (about 2 px at 1080p) are evaluated per ray
@@ -27,6 +30,10 @@ const int kMaxIso = 32;
 uniform int uIsoCount;
 uniform vec4 uIsoPos[kMaxIso];     // xyz: lamp − eye (camera frame, m); w: K_t (1/m)
 uniform vec3 uIsoWeight[kMaxIso];  // Ω K_t I × colour
+uniform vec3 uIsoDir[kMaxIso];     // unit vector eye → lamp
+// Sky tables: one row of 2 · uIsoSkyNodes values per lamp (R32F; NaN: the lamp has none).
+layout(binding = 8) uniform sampler2D uIsoSky;
+uniform int uIsoSkyNodes;
 
 // View tables: RG32F 3D textures, x = distance node, y = a node, z = b node.
 const int kMaxView = 6;
@@ -60,6 +67,23 @@ float isoF(int iu, float tu, float gz) {
   return mix(a, b, tu);
 }
 
+// L / w of a sky ray (unit direction wv) from lamp l's sky table; -1 when it has none.
+float isoSky(int l, vec3 wv) {
+  vec3 e = uIsoDir[l];
+  bool behind = dot(wv, e) < 0.0;
+  vec3 v = wv - (behind ? -e : e);
+  float x = 0.5 * length(v);
+  int i;
+  float t;
+  cell(x * (float(uIsoSkyNodes - 1) / 0.70710678118654752440), uIsoSkyNodes, i, t);
+  if (behind) i += uIsoSkyNodes;
+  float s0 = texelFetch(uIsoSky, ivec2(i, l), 0).r;
+  if (isnan(s0)) return -1.0;
+  float s1 = texelFetch(uIsoSky, ivec2(i + 1, l), 0).r;
+  float sinG = max(2.0 * x * sqrt(max(1.0 - x * x, 0.0)), 1e-7);
+  return mix(s0, s1, t) / sinG;
+}
+
 float hermite(float t, vec2 n0, vec2 n1) {  // n = (value, slope · cell)
   float t2 = t * t, t3 = t2 * t;
   float h01 = 3.0 * t2 - 2.0 * t3;
@@ -76,6 +100,13 @@ void main() {
     float a = (uPrincipal.x - x) * uInvF, b = (uPrincipal.y - y) * uInvF;
     float invLen = inversesqrt(1.0 + a * a + b * b);
     for (int l = 0; l < uIsoCount; ++l) {
+      if (isinf(dist)) {
+        float ls = isoSky(l, vec3(1.0, a, b) * invLen);
+        if (ls >= 0.0) {
+          acc += ls * uIsoWeight[l];
+          continue;
+        }
+      }
       vec3 L = uIsoPos[l].xyz;
       float kt = uIsoPos[l].w;
       float p = (L.x + a * L.y + b * L.z) * invLen;
@@ -83,7 +114,7 @@ void main() {
       float h = max(length(c) * invLen, 1e-6);
       int iu;
       float tu;
-      cell(log(1.0 + kt * h / uIsoK0) * uIsoUScale, uIsoNK, iu, tu);
+      cell(float(floatBitsToInt(1.0 + kt * h / uIsoK0) - 0x3F800000) * (uIsoUScale / 8388608.0), uIsoNK, iu, tu);
       float f0 = isoF(iu, tu, zetaNode(-p / h));
       float fd = isoF(iu, tu, isinf(dist) ? float(uIsoNZ - 1) : zetaNode((dist - p) / h));
       float lm = max(exp(-kt * p) / h * (fd - f0), 0.0);

@@ -49,6 +49,15 @@
 namespace fogbeam::cli {
 
 namespace {
+fogbeam::SubsamplingOptions benchSubOpts() {
+  fogbeam::SubsamplingOptions o;
+  if (const char* e = std::getenv("FB_TOL")) o.rel_tolerance = std::atof(e);
+  if (const char* e = std::getenv("FB_STEP")) o.coarse_step = std::atoi(e);
+  if (const char* e = std::getenv("FB_EDGE")) o.depth_edge_rel = std::atof(e);
+  return o;
+}
+}
+namespace {
 
 using Clock = std::chrono::steady_clock;
 using json = nlohmann::json;
@@ -237,17 +246,20 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   // them): it is timed on its own and reported as the table build, not as a frame.
   AirlightImage sub;
   const auto tWarm = Clock::now();
-  ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
+  ev.accurate.evaluate(scene, surface, benchSubOpts(), sub);
   const double warmMs = msSince(tWarm);
   const double tableMs = 1e3 * sub.table_seconds;
   // Adaptive subsampling: at least one frame; further frames while they fit the stage budget.
-  StageStats subStats;
+  StageStats subStats, subEval, subJudge, subFill;
   double subTotalMs = 0.0;
   for (int f = 0; f < o.frames; ++f) {
     if (f > 0 && subTotalMs + subStats.ms.back() > 1e3 * o.stageBudgetSeconds) break;
     const auto t0 = Clock::now();
-    ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
+    ev.accurate.evaluate(scene, surface, benchSubOpts(), sub);
     subStats.ms.push_back(msSince(t0));
+    subEval.ms.push_back(1e3 * sub.eval_seconds);
+    subJudge.ms.push_back(1e3 * sub.judge_seconds);
+    subFill.ms.push_back(1e3 * sub.fill_seconds);
     subTotalMs += subStats.ms.back();
   }
   // Full per-pixel: whole frames, as many as fit the budget (at least one).
@@ -374,6 +386,9 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   stages["surface_gl"] = glSurface;
   stages["airlight_subsampled"] = subStats.toJson();
   stages["airlight_subsampled"]["evaluated_pixels"] = sub.evaluated;
+  stages["airlight_subsampled"]["evaluate"] = subEval.toJson();
+  stages["airlight_subsampled"]["judge"] = subJudge.toJson();
+  stages["airlight_subsampled"]["fill"] = subFill.toJson();
   stages["airlight_full"] = fullStats.toJson();
   stages["airlight_full"]["evaluated_pixels"] = fullEvaluated;
   stages["airlight_first_frame"] = {{"ms", warmMs}, {"view_table_build_ms", tableMs}};
@@ -506,6 +521,9 @@ void printSize(const json& r) {
   std::snprintf(note, sizeof note, "  %zu px evaluated (%.1f %%)", s["airlight_subsampled"]["evaluated_pixels"].get<std::size_t>(),
                 100.0 * s["airlight_subsampled"]["evaluated_pixels"].get<double>() / n);
   printStage("airlight accurate, subsampled", s["airlight_subsampled"], note);
+  printStage("  of which evaluation", s["airlight_subsampled"]["evaluate"]);
+  printStage("  of which block tests, edges", s["airlight_subsampled"]["judge"]);
+  printStage("  of which interpolation", s["airlight_subsampled"]["fill"]);
   printStage("airlight accurate, full", s["airlight_full"], "  all px, whole frames");
   std::printf("  %-30s %9.2f ms  (of which view-table build %.2f ms; reused by later frames)\n",
               "airlight first frame", s["airlight_first_frame"]["ms"].get<double>(),

@@ -1,15 +1,21 @@
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/airlight_pencil.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/physics/validation.hpp>
 
 #include <boost/math/quadrature/gauss_kronrod.hpp>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
+#include <string>
 
 namespace fogbeam {
 namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 Lamp isotropicLamp(const Vec3& pos, double cd) {
   Lamp l;
@@ -159,6 +165,53 @@ TEST(Airlight, AccurateWithinBoundsForShippedHeadlampsUpToG09) {
                 s.p95, s.max, s.worstLabel.c_str());
     EXPECT_TRUE(accurateWithinBounds(s)) << file;
     EXPECT_GT(s.rows, 500u);
+  }
+}
+
+// Rays looking (nearly) straight away from a lamp behind the eye: the accurate method and the
+// pencil integrator against the reference within 0.01°–3° of that direction, sky and surface
+// distances, for an isotropic lamp and a following car's low beam (its backscatter ahead of
+// the driver). The tabulated G moments cannot resolve this cone (detail::kAwayConeRad): before
+// the direct integration there, the accurate method was 544 % off at 179.95°.
+TEST(Airlight, RaysLookingAwayFromALampMatchTheReference) {
+  Medium m;
+  m.extinction_per_m = extinctionFromVisibility(100.0);
+  m.albedo = 0.95;
+  m.phase = makeHenyeyGreenstein(0.85).value();
+  auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
+  ASSERT_TRUE(low.has_value());
+  Lamp following;
+  following.position_m = {-14.0, 0.7, 0.65};  // a following car's left low beam, aimed forward
+  following.profile = *low;
+  const Vec3 eye(0.0, 0.37, 1.2);
+  for (const Lamp& lamp : {isotropicLamp({-25.0, 4.0, -3.0}, 3000.0), following}) {
+    auto acc = AirlightEvaluator::build(lamp, m, AirlightMethod::Accurate);
+    auto ref = AirlightEvaluator::build(lamp, m, AirlightMethod::Reference);
+    ASSERT_TRUE(acc && ref);
+    auto pencil = PencilAirlight::build(*acc, eye);
+    ASSERT_TRUE(pencil.has_value());
+    const Vec3 away = glm::normalize(eye - lamp.position_m);
+    const Vec3 u = glm::normalize(glm::cross(away, Vec3(0, 0, 1))), v = glm::cross(u, away);
+    double worstAcc = 0.0, worstPencil = 0.0;
+    int compared = 0;
+    for (double offDeg : {0.01, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 2.8, 3.0, 3.5}) {
+      for (double phiDeg : {0.0, 70.0, 200.0, 290.0}) {
+        const double o = radians(offDeg), ph = radians(phiDeg);
+        const Vec3 dir = std::cos(o) * away + std::sin(o) * (std::cos(ph) * u + std::sin(ph) * v);
+        for (double d : {5.0, 40.0, kInf}) {
+          const double want = ref->evaluate(Ray{eye, dir, d});
+          if (!(want > 0.0)) continue;
+          worstAcc = std::max(worstAcc, std::abs(acc->evaluate(Ray{eye, dir, d}) - want) / want);
+          worstPencil = std::max(worstPencil, std::abs(pencil->evaluate(dir, d) - want) / want);
+          ++compared;
+        }
+      }
+    }
+    std::printf("looking away from the %s lamp: accurate max %.2e, pencil max %.2e (%d rays)\n",
+                lamp.profile == following.profile ? "low-beam" : "isotropic", worstAcc, worstPencil, compared);
+    EXPECT_GT(compared, 60);
+    EXPECT_LT(worstAcc, 1e-3);
+    EXPECT_LT(worstPencil, 2e-2);
   }
 }
 

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace fogbeam {
@@ -257,6 +258,73 @@ TEST(AirlightImage, OffAxisImageIsTheCropOfTheCentredImage) {
   EXPECT_LE(p95Full, 1e-3);
   EXPECT_LE(maxFull, 0.01);
   EXPECT_LE(p95Sub, 0.01);
+}
+
+// Tiling: with a zero tolerance every block splits, so the subsampled image evaluates every
+// pixel and must equal the full image exactly, whatever the image size against the tile size
+// (64 px) and the coarse step: each pixel written once, by the tile that owns it. Odd sizes,
+// one-pixel images and steps that do not divide the tile are included.
+TEST(AirlightImage, ZeroToleranceSubsamplingIsTheFullImageAtAnySize) {
+  for (const auto& [w, h, step] : std::vector<std::tuple<int, int, int>>{
+           {1, 1, 8}, {1, 37, 8}, {37, 1, 8}, {65, 65, 8}, {64, 64, 16}, {129, 66, 8}, {131, 70, 6}, {200, 90, 32},
+           {97, 130, 128}}) {
+    // Tiling does not depend on how lamps are evaluated: the street lamp (F table) and one
+    // oncoming lamp (pencil) everywhere; the vehicle lamps' view tables (the slow part to
+    // build) in one size only.
+    Scene scene = nightRoad(w, h);
+    if (w == 131) scene.lamps.erase(scene.lamps.begin() + 2, scene.lamps.begin() + 4);
+    else scene.lamps.erase(scene.lamps.begin(), scene.lamps.begin() + 3);
+    SurfaceBuffers surf;
+    renderSurfacesCpu(scene, surf);
+    auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, testFastPath());
+    ASSERT_TRUE(ev.has_value());
+    AirlightImage full, sub;
+    ev->evaluate(scene, surf, SubsamplingOptions{.full = true}, full);
+    SubsamplingOptions exact;
+    exact.coarse_step = step;
+    exact.rel_tolerance = 0.0;
+    exact.abs_tolerance_cd_m2 = 0.0;
+    ev->evaluate(scene, surf, exact, sub);
+    const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+    EXPECT_EQ(full.evaluated, n);
+    // Tile borders are evaluated by both tiles that meet there: a few more than the pixels.
+    EXPECT_GE(sub.evaluated, n) << w << "x" << h;
+    std::size_t differ = 0;
+    for (std::size_t k = 0; k < 3 * n; ++k) differ += full.rgb[k] != sub.rgb[k];
+    EXPECT_EQ(differ, 0u) << w << "x" << h << " step " << step;
+  }
+}
+
+// Vehicle lamps of one colour are read from one merged table (their frustum tables summed):
+// the image with both lamps equals the sum of the images with each alone, and switching a lamp
+// off and on again restores the image, i.e. the merged table follows the lamps' switching.
+TEST(AirlightImage, MergedVehicleTablesFollowLampSwitching) {
+  Scene scene = nightRoad(160, 90);
+  scene.lamps.resize(2);  // the two ego low beams only
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, testFastPath());
+  ASSERT_TRUE(ev.has_value());
+  const SubsamplingOptions full{.full = true};
+  AirlightImage both, left, right, again;
+  ev->evaluate(scene, surf, full, both);
+  ev->setLampEnabled(1, false);
+  ev->evaluate(scene, surf, full, left);
+  ev->setLampEnabled(1, true);
+  ev->setLampEnabled(0, false);
+  ev->evaluate(scene, surf, full, right);
+  ev->setLampEnabled(0, true);
+  ev->evaluate(scene, surf, full, again);
+  double worst = 0.0, peak = 0.0;
+  for (std::size_t k = 0; k < both.rgb.size(); ++k) {
+    const double sum = static_cast<double>(left.rgb[k]) + static_cast<double>(right.rgb[k]);
+    worst = std::max(worst, std::abs(static_cast<double>(both.rgb[k]) - sum) / std::max(sum, 1e-3));
+    peak = std::max(peak, sum);
+    ASSERT_EQ(both.rgb[k], again.rgb[k]) << k;
+  }
+  std::printf("both lamps vs the sum of each alone: max relative difference %.2e (peak %.3g cd/m2)\n", worst, peak);
+  ASSERT_GT(peak, 0.0);
+  EXPECT_LT(worst, 1e-5);  // float rounding of the summed table
 }
 
 TEST(SurfaceCpu, RoadLitByOwnBeamMatchesLambertFormulaAndDistances) {

@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
 
 namespace fogbeam {
@@ -94,6 +96,8 @@ TEST(AirlightKernels, IsoTableMatchesAccurateEvaluator) {
       const double got = m.albedo * kt * 3000.0 * std::exp(-kt * geo.p) / geo.h * (fd - f0);
       rel.push_back(std::abs(got - want) / want);
     }
+    std::printf("  F table (%d x %d) vs accurate, g = %.2f: median %.2e, p95 %.2e, max %.2e\n", table->nK, table->nZ, g,
+                percentile(rel, 0.5), percentile(rel, 0.95), percentile(rel, 1.0));
     EXPECT_LT(percentile(rel, 0.95), 1e-3) << "g = " << g;
     EXPECT_LT(percentile(rel, 1.0), 1e-2) << "g = " << g;
   }
@@ -161,7 +165,9 @@ TEST(AirlightKernels, IsoKernelMatchesScalarOnEveryTarget) {
   const auto table = kernels::IsoTable::get(m.phase);
   std::vector<kernels::IsoLamp> lamps;
   // Lamps ahead, beside and behind the eye (camera frame: x forward, y left, z up).
-  for (const Vec3 p : {Vec3(25, -6, 7), Vec3(60, 6, 7), Vec3(8, 1.5, 0.5), Vec3(-3, 0.5, -0.4), Vec3(40, 0.05, 0.0)}) {
+  const std::vector<Vec3> at{Vec3(25, -6, 7), Vec3(60, 6, 7), Vec3(8, 1.5, 0.5), Vec3(-3, 0.5, -0.4), Vec3(40, 0.05, 0.0)};
+  std::vector<float> sky(2 * kernels::kIsoSkyNodes * at.size());
+  for (const Vec3 p : at) {
     kernels::IsoLamp l;
     for (int c = 0; c < 3; ++c) l.pos[c] = static_cast<float>(p[c]);
     l.weight[0] = 100.0f;
@@ -172,14 +178,186 @@ TEST(AirlightKernels, IsoKernelMatchesScalarOnEveryTarget) {
   }
   const kernels::PixelGeometry geo{320.0f, 180.0f, static_cast<float>(1.0 / (320.0 / std::tan(radians(30.0))))};
   const Batch b = randomPixels(4099, 640, 360, 11);  // not a multiple of any vector length
-  compareAllTargets(
-      b,
-      [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
-        kernels::accumulateIsoLamps(*table, lamps.data(), lamps.size(), geo, px, r, g, bl);
-      },
-      [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
-        kernels::accumulateIsoLampsScalar(*table, lamps.data(), lamps.size(), geo, px, r, g, bl);
-      });
+  // Sky rays through the F table (no sky tables), then through the lamps' sky tables.
+  for (bool withSky : {false, true}) {
+    if (withSky)
+      for (std::size_t l = 0; l < lamps.size(); ++l) {
+        kernels::buildIsoSky(*table, lamps[l], sky.data() + 2 * kernels::kIsoSkyNodes * l);
+        lamps[l].sky = sky.data() + 2 * kernels::kIsoSkyNodes * l;
+      }
+    compareAllTargets(
+        b,
+        [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
+          kernels::accumulateIsoLamps(*table, lamps.data(), lamps.size(), geo, px, r, g, bl);
+        },
+        [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
+          kernels::accumulateIsoLampsScalar(*table, lamps.data(), lamps.size(), geo, px, r, g, bl);
+        });
+  }
+}
+
+// The sky table of an isotropic lamp (IsoSky: one function of the angle γ between ray and lamp)
+// against the F-table formula it is made from and against the accurate evaluator, on sky rays
+// all round the lamp: within a few degrees of its direction (the 1/γ peak), across the whole
+// sphere, and within a few degrees of the opposite direction (where sin γ → 0 again).
+TEST(AirlightKernels, IsoSkyTableMatchesTheFTableAndTheAccurateMethod) {
+  // A lamp ahead of the camera and one behind it (its opposite direction is then in view).
+  for (const auto& [g, lampPos] : std::vector<std::pair<double, Vec3>>{
+           {0.0, Vec3(30.0, -6.0, 8.0)}, {0.85, Vec3(30.0, -6.0, 8.0)}, {0.85, Vec3(-25.0, 4.0, -3.0)}}) {
+    const Medium m = fog(g);
+    const auto table = kernels::IsoTable::get(m.phase);
+    Lamp lamp;
+    lamp.position_m = lampPos;
+    lamp.profile = makeProfile(IsotropicProfile{3000.0}).value();
+    auto ev = AirlightEvaluator::build(lamp, m, AirlightMethod::Accurate);
+    ASSERT_TRUE(ev.has_value());
+    kernels::IsoLamp L;
+    for (int c = 0; c < 3; ++c) L.pos[c] = static_cast<float>(lampPos[c]);
+    L.kt = static_cast<float>(m.extinction_per_m);
+    L.weight[0] = L.weight[1] = L.weight[2] = 1.0f;
+    std::vector<float> sky(2 * kernels::kIsoSkyNodes);
+    kernels::buildIsoSky(*table, L, sky.data());
+    L.sky = sky.data();
+    const Vec3 e = glm::normalize(lampPos);
+    const Vec3 u = glm::normalize(glm::cross(e, Vec3(0, 0, 1))), v = glm::cross(u, e);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    std::vector<double> vsTable, vsAccurate;
+    for (int n = 0; n < 600; ++n) {
+      // γ: a third near the lamp (0.01°–3°), a third anywhere, a third near the opposite pole.
+      const double r = uni(rng);
+      const double gamma = n % 3 == 0 ? radians(0.01 + 3.0 * r) : n % 3 == 1 ? kPi * r : kPi - radians(0.01 + 3.0 * r);
+      const double phi = 2.0 * kPi * uni(rng);
+      const Vec3 dir = std::cos(gamma) * e + std::sin(gamma) * (std::cos(phi) * u + std::sin(phi) * v);
+      // One pixel whose ray is `dir`: camera frame x forward (a = y/x, b = z/x) needs x > 0;
+      // rays behind the camera go through the scalar definition directly.
+      const double kt = m.extinction_per_m;
+      const RayLampGeometry geo = rayLampGeometry(Ray{{0, 0, 0}, dir, kInf}, lampPos);
+      const double formula = std::exp(-kt * geo.p) / geo.h *
+                             (table->lookup(kt * geo.h, kInf) - table->lookup(kt * geo.h, -geo.p / geo.h));
+      double got = 0.0;
+      if (dir.x > 1e-3) {
+        const float pxX = 0.5f, pxY = 0.5f, d = std::numeric_limits<float>::infinity();
+        const kernels::PixelGeometry pg{static_cast<float>(0.5 + dir.y / dir.x), static_cast<float>(0.5 + dir.z / dir.x), 1.0f};
+        float rr = 0.0f, gg = 0.0f, bb = 0.0f;
+        kernels::accumulateIsoLampsScalar(*table, &L, 1, pg, {&pxX, &pxY, &d, 1}, &rr, &gg, &bb);
+        got = static_cast<double>(rr);
+      } else {
+        continue;
+      }
+      // Within a few degrees of the direction away from the lamp the F-table formula itself
+      // loses accuracy (F(k, π/2) − F(k, θ0) at small k is a small difference of large table
+      // values: 24 % off at 179.95°, where the sky table, whose nodes sit exactly at γ = π, is
+      // within 1 %); it is compared elsewhere.
+      if (gamma < radians(170.0)) vsTable.push_back(std::abs(got - formula) / formula);
+      const double want = ev->evaluate(Ray{{0, 0, 0}, dir, kInf}) / (m.albedo * kt * 3000.0);
+      vsAccurate.push_back(std::abs(got - want) / want);
+    }
+    ASSERT_GT(vsAccurate.size(), 190u);
+    std::printf("  sky table, lamp %s, g = %.2f: vs F-table formula p95 %.2e max %.2e; vs accurate p95 %.2e max %.2e (%zu rays)\n",
+                lampPos.x > 0 ? "ahead" : "behind", g,
+                percentile(vsTable, 0.95), percentile(vsTable, 1.0), percentile(vsAccurate, 0.95),
+                percentile(vsAccurate, 1.0), vsAccurate.size());
+    EXPECT_LT(percentile(vsTable, 0.95), 1e-3) << g;
+    EXPECT_LT(percentile(vsTable, 1.0), 5e-3) << g;
+    EXPECT_LT(percentile(vsAccurate, 0.95), 1e-3) << g;
+    EXPECT_LT(percentile(vsAccurate, 1.0), 5e-3) << g;
+  }
+}
+
+// The F table's k axis: pseudoLog2 is the float-bits logarithm, exact at powers of two,
+// continuous and increasing, with pseudoExp2 its inverse.
+TEST(AirlightKernels, PseudoLogAxisIsMonotoneAndInvertible) {
+  for (int e = 0; e < 20; ++e) EXPECT_EQ(kernels::pseudoLog2(std::ldexp(1.0, e)), static_cast<double>(e));
+  double prev = -1.0;
+  for (double y = 1.0; y < 5000.0; y *= 1.0137) {
+    const double u = kernels::pseudoLog2(y);
+    EXPECT_GT(u, prev);
+    EXPECT_NEAR(kernels::pseudoExp2(u), y, 1e-12 * y);
+    EXPECT_LE(std::abs(u - std::log2(y)), 0.0861);  // max of log2(1 + m) − m over m ∈ [0, 1)
+    prev = u;
+  }
+}
+
+// The tile kernels of the subsampled image on every target: distance-edge bits against the
+// per-pixel mask, the bilinear fill of leaves against a scalar fill, and the RGB interleave.
+TEST(AirlightKernels, TileKernelsMatchScalarOnEveryTarget) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const std::size_t n = 203, pad = 32;
+  // Three rows of 1/d with steps (silhouettes), smooth ramps and zeros (sky), padded both sides.
+  std::vector<float> rows(3 * (n + 2 * pad), 0.0f);
+  for (int r = 0; r < 3; ++r)
+    for (std::size_t i = 0; i < n; ++i) {
+      float q = 0.02f + 0.0001f * static_cast<float>(i);
+      if ((i / 17) % 3 == 0) q = 0.0f;
+      if ((i / 29) % 4 == 1) q = 0.08f + 0.01f * u(rng);
+      rows[static_cast<std::size_t>(r) * (n + 2 * pad) + pad + i] = q;
+    }
+  const float* up = rows.data() + pad;
+  const float* c = up + (n + 2 * pad);
+  const float* dn = c + (n + 2 * pad);
+  // The definition: a second difference beyond 2 % of the largest value, which exceeds the floor;
+  // along the row for inner entries, across the rows for all.
+  auto edge = [](float a, float b, float m, float floor) {
+    const float top = std::max(std::max(a, b), m);
+    return std::abs(a + b - 2 * m) > 0.02f * top && top > floor;
+  };
+  std::size_t edges = 0;
+  for (const std::string& t : kernels::availableTargets()) {
+    ASSERT_TRUE(kernels::forceTarget(t));
+    for (float floor : {0.0f, 0.05f}) {
+      for (bool across : {true, false}) {
+        std::vector<std::uint64_t> bits((n + 63) / 64 + 1, ~std::uint64_t{0});
+        kernels::distanceEdgeBits(across ? up : nullptr, c, across ? dn : nullptr, n, 0.02f, floor, bits.data());
+        for (std::size_t i = 0; i < n; ++i) {
+          const bool got = (bits[i / 64] >> (i % 64)) & 1u;
+          const bool want = (i > 0 && i + 1 < n && edge(c[i - 1], c[i + 1], c[i], floor)) ||
+                            (across && edge(up[i], dn[i], c[i], floor));
+          edges += want;
+          ASSERT_EQ(got, want) << t << " floor " << floor << " across " << across << " pixel " << i;
+        }
+        EXPECT_EQ(bits[(n + 63) / 64], 0u) << t;
+      }
+    }
+    // Fill: planes of 40 × 20 with a stride of 64, random corner values, some pixels done.
+    const std::size_t stride = 64;
+    std::vector<float> planes(3 * stride * 21);
+    for (float& v : planes) v = u(rng);
+    std::vector<std::uint8_t> done(stride * 21, 0);
+    for (auto& dv : done) dv = u(rng) < 0.2f ? 1 : 0;
+    const std::vector<kernels::FillBlock> blocks{{0, 0, 8, 8, 7, 7}, {8, 0, 16, 8, 23, 7}, {24, 0, 1, 1, 24, 0},
+                                                 {0, 8, 4, 12, 4, 19}, {30, 10, 9, 9, 39, 19}};
+    std::vector<float> want = planes, got = planes;
+    for (const auto& bl : blocks)
+      for (int j = bl.j0; j <= bl.jEnd; ++j)
+        for (int i = bl.i0; i <= bl.iEnd; ++i) {
+          const std::size_t at = static_cast<std::size_t>(j) * stride + static_cast<std::size_t>(i);
+          if (done[at]) continue;
+          const float fu = static_cast<float>(i - bl.i0) / static_cast<float>(bl.w);
+          const float fv = static_cast<float>(j - bl.j0) / static_cast<float>(bl.h);
+          for (int p = 0; p < 3; ++p) {
+            const float* pl = planes.data() + static_cast<std::size_t>(p) * stride * 21;
+            auto cv = [&](int ii, int jj) { return pl[static_cast<std::size_t>(jj) * stride + static_cast<std::size_t>(ii)]; };
+            const float left = cv(bl.i0, bl.j0) + fv * (cv(bl.i0, bl.j0 + bl.h) - cv(bl.i0, bl.j0));
+            const float right = cv(bl.i0 + bl.w, bl.j0) + fv * (cv(bl.i0 + bl.w, bl.j0 + bl.h) - cv(bl.i0 + bl.w, bl.j0));
+            want[static_cast<std::size_t>(p) * stride * 21 + at] = left + fu * (right - left);
+          }
+        }
+    kernels::fillBlocks(blocks.data(), blocks.size(), got.data(), got.data() + stride * 21, got.data() + 2 * stride * 21,
+                        done.data(), stride);
+    for (std::size_t k = 0; k < got.size(); ++k) ASSERT_NEAR(got[k], want[k], 2e-6f) << t << " at " << k;
+    std::vector<float> rgb(3 * 37, -1.0f);
+    kernels::interleaveRgb(planes.data(), planes.data() + 100, planes.data() + 200, 37, rgb.data());
+    kernels::flushStreams();
+    for (std::size_t i = 0; i < 37; ++i) {
+      ASSERT_EQ(rgb[3 * i], planes[i]) << t;
+      ASSERT_EQ(rgb[3 * i + 1], planes[100 + i]) << t;
+      ASSERT_EQ(rgb[3 * i + 2], planes[200 + i]) << t;
+    }
+  }
+  kernels::forceTarget("");
+  EXPECT_GT(edges, 100u);  // the rows hold silhouettes
 }
 
 // A camera-fixed low beam: the view table against the per-ray accurate evaluator, then the

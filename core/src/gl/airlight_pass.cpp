@@ -1,6 +1,7 @@
 // fogbeam — GlAirlightPass (fogbeam/gl/airlight_pass.hpp): uploads the fast path's tables as
-// textures (F table: R32F 2D; view tables: RG32F 3D, x = distance node), the distance buffer as
-// an R32F texture, draws one full-screen triangle into an RGBA32F target and reads it back.
+// textures (F table: R32F 2D; isotropic lamps' sky tables: R32F 2D, one row per lamp; view
+// tables: RG32F 3D, x = distance node), the distance buffer as an R32F texture, draws one
+// full-screen triangle into an RGBA32F target and reads it back.
 #include <fogbeam/gl/airlight_pass.hpp>
 
 #include "egl_context.hpp"
@@ -12,6 +13,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstring>
+#include <limits>
 #include <string>
 #include <tuple>
 
@@ -35,7 +37,8 @@ struct GlAirlightPass::Impl {
   std::string description;
   GlAirlightStats stats;
   bool timerQuery = false;
-  GLuint program = 0, vao = 0, fbo = 0, colorTex = 0, distanceTex = 0, isoTex = 0, query = 0;
+  GLuint program = 0, vao = 0, fbo = 0, colorTex = 0, distanceTex = 0, isoTex = 0, skyTex = 0, query = 0;
+  std::vector<float> sky;  // the isotropic lamps' sky tables, one row each
   std::array<GLuint, kMaxView> viewTex{};
   std::array<TableKey, kMaxView> viewKey{};
   TableKey isoKey{};
@@ -50,6 +53,7 @@ struct GlAirlightPass::Impl {
     glDeleteTextures(1, &colorTex);
     glDeleteTextures(1, &distanceTex);
     glDeleteTextures(1, &isoTex);
+    glDeleteTextures(1, &skyTex);
     glDeleteTextures(kMaxView, viewTex.data());
     if (query) glDeleteQueries(1, &query);
   }
@@ -102,6 +106,7 @@ Result<std::unique_ptr<GlAirlightPass>> GlAirlightPass::create(const GlOptions& 
   glGenVertexArrays(1, &impl->vao);
   glGenFramebuffers(1, &impl->fbo);
   glGenTextures(1, &impl->isoTex);
+  glGenTextures(1, &impl->skyTex);
   glGenTextures(kMaxView, impl->viewTex.data());
   if (impl->timerQuery) glGenQueries(1, &impl->query);
   if (std::string e = gl::glErrors("GL airlight pass set-up"); !e.empty()) return Error{e};
@@ -156,6 +161,18 @@ Status GlAirlightPass::render(const Camera& camera, const AirlightImageEvaluator
     glTexParameteri(GL_TEXTURE_3D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
     m.viewKey[v] = key;
   }
+  // The sky tables change with every move of eye or lamp: uploaded every frame (4 KiB a lamp).
+  // A lamp without one (sky rays through the F table) gets a row of NaN, which the shader
+  // recognises.
+  const std::size_t skyRow = 2 * static_cast<std::size_t>(kernels::kIsoSkyNodes);
+  m.sky.assign(skyRow * std::max<std::size_t>(nIso, 1), std::numeric_limits<float>::quiet_NaN());
+  for (std::size_t l = 0; l < nIso; ++l)
+    if (const float* t = (*view.isoLamps)[l].sky) std::copy_n(t, skyRow, m.sky.data() + l * skyRow);
+  glBindTexture(GL_TEXTURE_2D, m.skyTex);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_R32F, static_cast<GLsizei>(skyRow), static_cast<GLsizei>(std::max<std::size_t>(nIso, 1)),
+               0, GL_RED, GL_FLOAT, m.sky.data());
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   m.stats.table_upload_ms = msSince(tTables);
   // Distances: row 0 of the texture is image row 0 (the shader flips gl_FragCoord.y).
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
@@ -177,12 +194,14 @@ Status GlAirlightPass::render(const Camera& camera, const AirlightImageEvaluator
     glUniform1i(m.loc("uIsoNZ"), view.isoTable->nZ);
     glUniform1f(m.loc("uIsoK0"), view.isoTable->k0);
     glUniform1f(m.loc("uIsoUScale"), view.isoTable->uScale);
+    glUniform1i(m.loc("uIsoSkyNodes"), kernels::kIsoSkyNodes);
   }
   for (std::size_t l = 0; l < nIso; ++l) {
     const kernels::IsoLamp& L = (*view.isoLamps)[l];
     const std::string i = "[" + std::to_string(l) + "]";
     glUniform4f(m.loc(("uIsoPos" + i).c_str()), L.pos[0], L.pos[1], L.pos[2], L.kt);
     glUniform3f(m.loc(("uIsoWeight" + i).c_str()), L.weight[0], L.weight[1], L.weight[2]);
+    glUniform3f(m.loc(("uIsoDir" + i).c_str()), L.dir[0], L.dir[1], L.dir[2]);
   }
   glUniform1i(m.loc("uViewCount"), static_cast<GLint>(tables.size()));
   for (std::size_t v = 0; v < tables.size(); ++v) {
@@ -201,6 +220,8 @@ Status GlAirlightPass::render(const Camera& camera, const AirlightImageEvaluator
   glBindTexture(GL_TEXTURE_2D, m.distanceTex);
   glActiveTexture(GL_TEXTURE1);
   glBindTexture(GL_TEXTURE_2D, m.isoTex);
+  glActiveTexture(GL_TEXTURE2 + kMaxView);
+  glBindTexture(GL_TEXTURE_2D, m.skyTex);
   for (std::size_t v = 0; v < kMaxView; ++v) {
     glActiveTexture(GL_TEXTURE2 + static_cast<GLenum>(v));
     glBindTexture(GL_TEXTURE_3D, m.viewTex[v]);

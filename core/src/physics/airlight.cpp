@@ -204,16 +204,35 @@ double referenceIntegral(const Context& c, double th0, double thD, double relTol
     if (!std::isfinite(expo)) return 0.0;
     return std::exp(-expo) * evalPhase(c.phase, -std::sin(th)) * c.intensity(th);
   };
+  // Towards θ = π/2 G = e^{−k cot(s/2)} p, s = π/2 − θ, has an essential singularity at s = 0
+  // that Gauss rules approach slowly (seconds per ray for a ray looking 0.01° from straight away
+  // from the lamp, where the whole range lies next to it). Pieces that start where the exponent
+  // t = k cot(s/2) is already ≥ 0.1 are integrated in t: θ = π/2 − 2 atan(k/t),
+  // dθ = 2k/(k² + t²) dt, a smooth integrand e^{−t} … over [t(θa), t(θb)] (t(π/2) = ∞). (Where
+  // t is still small at the piece's start, 2k/(k² + t²) spans many scales in t and θ is better.)
+  auto ft = [&](double t) {
+    if (!(t > 0.0)) return 0.0;
+    const double th = kHalfPi - 2.0 * std::atan(c.k / t);
+    return std::exp(-c.kt * c.p - t) * evalPhase(c.phase, -std::sin(th)) * c.intensity(th) * 2.0 * c.k /
+           (c.k * c.k + t * t);
+  };
+  using GK = boost::math::quadrature::gauss_kronrod<double, 31>;
+  auto piece = [&](double a, double b, unsigned depth, double tol, double* err, double* l1) {
+    if (c.k > 0.0 && a > 0.0 && c.k * tanHalfAngleSum(a) >= 0.1)
+      return GK::integrate(ft, c.k * tanHalfAngleSum(a),
+                           b >= kHalfPi ? std::numeric_limits<double>::infinity() : c.k * tanHalfAngleSum(b), depth, tol,
+                           err, l1);
+    return GK::integrate(f, a, b, depth, tol, err, l1);
+  };
   // Two passes: a 31-point estimate of every piece gives the integral's scale, then each piece
   // is refined to an absolute tolerance relTol × |total| (a piece-relative tolerance would
   // chase rounding noise on negligible pieces, e.g. near θ → π/2 where e^{−k s} underflows).
-  using GK = boost::math::quadrature::gauss_kronrod<double, 31>;
   std::vector<double> l1(bp.size(), 0.0);
   double total = 0.0;
   for (std::size_t i = 1; i < bp.size(); ++i) {
     if (bp[i] - bp[i - 1] < 1e-13) continue;
     double err = 0.0;
-    GK::integrate(f, bp[i - 1], bp[i], 0, 0.0, &err, &l1[i]);
+    piece(bp[i - 1], bp[i], 0, 0.0, &err, &l1[i]);
     total += l1[i];
   }
   if (!(total > 0.0)) return 0.0;
@@ -222,7 +241,7 @@ double referenceIntegral(const Context& c, double th0, double thD, double relTol
     if (bp[i] - bp[i - 1] < 1e-13 || l1[i] == 0.0) continue;
     const double tol = std::min(0.1, relTol * total / l1[i]);
     double err = 0.0;
-    sum += GK::integrate(f, bp[i - 1], bp[i], 20, tol, &err);
+    sum += piece(bp[i - 1], bp[i], 20, tol, &err, nullptr);
   }
   return sum;
 }
@@ -381,7 +400,9 @@ double AirlightEvaluator::evaluate(const Ray& ray) const noexcept {
     case AirlightMethod::Reference:
       return scale * referenceIntegral(c, geo.theta0, geo.thetaD, options_.reference_rel_tol);
     case AirlightMethod::Accurate: {
-      if (c.k > tables_->g->kMax())  // beyond the table: rare (h > k_max / K_t), integrate directly
+      // Beyond the table (rare: h > k_max / K_t) or looking (nearly) straight away from the lamp
+      // (detail::kAwayConeRad): integrate directly.
+      if (c.k > tables_->g->kMax() || geo.theta0 > kHalfPi - detail::kAwayConeRad)
         return scale * referenceIntegral(c, geo.theta0, geo.thetaD, 1e-6);
       return scale * std::exp(-kt * geo.p) * accurateIntegral(c, *tables_->g, geo.theta0, geo.thetaD, options_);
     }
@@ -415,7 +436,8 @@ void AirlightEvaluator::evaluateCumulative(const Ray& ray, const double* distanc
   r.distance_m = std::numeric_limits<double>::infinity();
   const RayLampGeometry geo = rayLampGeometry(r, lamp_.position_m);
   const bool negligible = kt * glm::length(lamp_.position_m - ray.origin) > kMaxOpticalDistance;
-  if (negligible || method_ != AirlightMethod::Accurate || kt * geo.h > tables_->g->kMax()) {
+  if (negligible || method_ != AirlightMethod::Accurate || kt * geo.h > tables_->g->kMax() ||
+      geo.theta0 > kHalfPi - detail::kAwayConeRad) {
     for (std::size_t m = 0; m < n; ++m) {
       r.distance_m = distances[m];
       out[m] = negligible ? 0.0 : evaluate(r);

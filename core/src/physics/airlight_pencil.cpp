@@ -213,8 +213,9 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   const double kt = ev.medium().extinction_per_m;
   const double h = distance_ * sa, p = distance_ * c;      // eq. (3): lamp–ray distance, foot
   const detail::GMomentTable& g = *ev.tables_->g;
-  if (sp.s0 < 0 || !(h > 1e-9) || kt * h > g.kMax()) {
-    // Per ray: the eye at the lamp, a ray through the lamp, or beyond the G table.
+  if (sp.s0 < 0 || !(h > 1e-9) || kt * h > g.kMax() || std::atan2(sa, c) > kPi - detail::kAwayConeRad) {
+    // Per ray: the eye at the lamp, a ray through the lamp, beyond the G table, or looking
+    // (nearly) straight away from the lamp (detail::kAwayConeRad).
     ev.evaluateCumulative(Ray{eye_, direction, 0.0}, distances, n, out);
     return;
   }

@@ -20,6 +20,15 @@ namespace fogbeam::detail {
 
 /// Cumulative G moments, cubic Hermite in θ (dT_q/dθ = θ^q G is stored too) and
 /// Catmull-Rom in the k coordinate u = log1p(k/k0)/log1p(kmax/k0).
+/// Rays whose whole integration range lies within this angle of θ = π/2 (the ray looks within
+/// this angle of straight away from the lamp) are integrated directly, not from GMomentTable:
+/// there T_q(θd) − T_q(θ0) is a small difference of large table values whose interpolation in
+/// k (G changes with k on the scale k ≈ cos θ) it cannot resolve. Measured before this rule,
+/// isotropic lamp 25.9 m behind the eye, HG g = 0.85, 100 m fog: accurate against reference
+/// 3e-5 at 178° from the lamp, 1.9e-4 at 179°, 1.1e-3 at 179.5°, 29 % at 179.9°, 544 % at
+/// 179.95°. The cone is kept narrow: direct integration costs 10–140 µs a ray.
+inline constexpr double kAwayConeRad = 0.0175;  // 1°
+
 class GMomentTable {
  public:
   GMomentTable(const Phase& phase, int nTheta, int nK, double kMax);

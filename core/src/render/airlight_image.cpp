@@ -15,14 +15,41 @@ namespace fogbeam {
 
 namespace {
 
-// Batches are cut into chunks of this many pixels for the thread pool; a multiple of 64 so
-// every chunk starts on a whole SIMD vector of any width (kernels::paddedSize).
+// The coarse grid's corners are evaluated in chunks of this many pixels (a multiple of 64, so
+// every chunk is whole SIMD vectors of any width: kernels::paddedSize).
 constexpr std::size_t kChunk = 2048;
+// The image is cut into tiles of about this many pixels square (a multiple of the coarse step),
+// each refined, interpolated and written by one thread with its memory in cache.
+constexpr int kTile = 64;
 // View tables per vehicle lamp: the frustum table and two insets around the lamp's image.
 constexpr std::size_t kTablesPerLamp = 3;
 
 struct Block {
-  int i0, j0, i1, j1;  // inclusive corner pixels, all four already evaluated
+  int i0, j0, i1, j1;  // inclusive corner pixels (image coordinates), all four already evaluated
+};
+
+// One thread's working memory, sized once per image and tile size (no allocation per frame).
+struct Scratch {
+  // A batch of pixels (padded structure of arrays) and, per entry, its place in the tile.
+  std::vector<float> x, y, d, r, g, b;
+  std::vector<std::uint32_t> slot;
+  std::size_t n = 0;
+  // The pixels of a batch inside one disc (view-table rings, per-ray guards), compacted.
+  std::vector<float> sx, sy, sd, sr, sg, sb;
+  std::vector<std::uint32_t> sidx;
+  // The tile's closed region (its pixels and the next tile's first column and row), `stride`
+  // floats per row: airlight planes, evaluated flags; rows of 1/d with a one-pixel halo (qStride
+  // per row, entry 1 = the halo column left of the region) and their distance-edge bits.
+  std::size_t stride = 0, qStride = 0, edgeWords = 0;
+  std::vector<float> pr, pg, pb;
+  std::vector<std::uint8_t> done;
+  std::vector<float> q;
+  std::vector<std::uint64_t> edges;
+  std::vector<Block> cur, next, leaves;
+  std::vector<kernels::FillBlock> fill;
+  // Figures of this frame (thread time).
+  std::size_t evaluated = 0;
+  double evalSeconds = 0.0, judgeSeconds = 0.0, fillSeconds = 0.0;
 };
 
 // Everything a view table depends on besides the lamp's profile: rebuilt when any changes.
@@ -74,25 +101,37 @@ struct AirlightImageEvaluator::State {
   std::vector<RayGuard> rayGuards;
   std::vector<ViewKey> viewKeys;
   std::vector<bool> viewValid;
+  // Frustum tables of enabled vehicle lamps of one colour summed into one (read with one set
+  // of gathers instead of one per lamp), rebuilt when a member's table or the enabled set
+  // changes; mergedFrom[m] lists the vehicle lamps (viewLamps entries) summed into merged[m].
+  std::vector<kernels::ViewTable> merged;
+  std::vector<std::vector<std::size_t>> mergedFrom;
+  std::vector<char> mergedEnabled;  // viewEnabled when the merged tables were made
+  bool mergedValid = false;
+  // Every view-table lookup of this frame: a table, how it is applied, and whether it covers the
+  // whole image (else only the disc (a, b, r²) of the tangent plane, where pixels are compacted).
+  struct TableUse {
+    const kernels::ViewTable* table = nullptr;
+    kernels::ViewTableUse use;
+    bool whole = true;
+    double a = 0.0, b = 0.0, r2 = 0.0;
+  };
+  std::vector<TableUse> tableUses;
   std::vector<kernels::IsoLamp> isoParams;  // this frame, capacity kept
+  // Per isoLamps entry: its IsoSky table (2·kIsoSkyNodes floats) and what it was built for
+  // (distance and extinction; rebuilt when either changes, i.e. whenever eye or lamp moves).
+  std::vector<float> isoSky;
+  std::vector<std::array<float, 2>> isoSkyKey;
+  std::vector<std::size_t> isoSlot;  // per isoParams entry: its isoLamps entry (sky table slot)
+  std::vector<char> isoSkyStale;     // per isoParams entry: its sky table is rebuilt this frame
   std::vector<char> enabled;                 // per lamp (scene order)
   std::vector<char> viewEnabled;             // per viewLamps entry, this frame
 
-  // Per-frame buffers, sized once per image size.
-  std::vector<unsigned char> done;  // per pixel: evaluated (1)
-  std::vector<float> bx, by, bd, br, bg, bb;  // the batch being evaluated (padded)
-  std::vector<std::uint32_t> bidx;            // its pixel indices
-  std::size_t bn = 0;
-  std::vector<Block> cur, next, leaves;
-  std::vector<unsigned char> split;
-  std::vector<std::pair<double, double>> lampPixels;
-  std::vector<float> fullX, fullY;  // pixel centres for full mode
-  std::vector<std::uint32_t> edgeSat;  // summed-area table of the distance-edge mask, (W+1)×(H+1)
-  std::vector<float> invDist;          // 1/d per pixel, 0 for the sky
-  // Compacted sub-batches for tables and guards that cover a small disc (same layout as bx…).
-  std::vector<float> sx, sy, sd, sr, sg, sb;
-  std::vector<std::uint32_t> sidx;
-  int fullW = 0, fullH = 0;
+  std::vector<std::pair<double, double>> lampPixels;  // image positions of lamps in front, this frame
+  // Per-thread working memory and the coarse grid's airlight (3 per corner), sized once.
+  std::vector<Scratch> scratch;
+  std::vector<float> coarse;
+  std::size_t scratchBatch = 0, scratchTile = 0;
 };
 
 Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene, AirlightMethod method,
@@ -192,14 +231,17 @@ AirlightImageEvaluator::FastPathView AirlightImageEvaluator::fastPathView() cons
 std::size_t AirlightImageEvaluator::fastTableBytes() const noexcept {
   std::size_t n = state_->isoTable ? state_->isoTable->bytes() : 0;  // shared per phase
   for (const auto& vt : state_->viewTables) n += vt.bytes();
+  for (const auto& vt : state_->merged) n += vt.bytes();
   return n;
 }
 
 namespace {
 
-float lum(const float* p) { return p[0] + p[1] + p[2]; }
+double since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
 
-// One frame's evaluation context: the evaluator's state plus this frame's inputs.
+// One frame's evaluation context: the evaluator's state plus this frame's inputs and tiling.
 struct FrameCtx {
   const AirlightImageEvaluator::State* st;
   const std::vector<AirlightEvaluator>* lamps;
@@ -208,31 +250,47 @@ struct FrameCtx {
   AirlightImage* out;
   kernels::PixelGeometry geo;
   const SubsamplingOptions* opt;
+  int step = 8;           // coarse step, pixels
+  int tile = kTile;       // tile size, pixels (a multiple of step)
+  int tilesX = 1, tilesY = 1;
+  int coarseX = 1, coarseY = 1;  // coarse grid corners along x and y
+  float edgeFloor = 0.0f;  // 1/d beyond which distance edges are ignored
   std::size_t idx(int i, int j) const {
     return static_cast<std::size_t>(j) * static_cast<std::size_t>(cam->width) + static_cast<std::size_t>(i);
   }
+  // Index of a coarse-grid column (a multiple of step, or the last pixel column) and row.
+  int coarseCol(int i) const { return i == cam->width - 1 ? coarseX - 1 : i / step; }
+  int coarseRow(int j) const { return j == cam->height - 1 ? coarseY - 1 : j / step; }
 };
 
-}  // namespace
+// Tiles along an image side of n pixels: tile t owns [t·T, (t + 1)·T), the last one up to n.
+int tilesAlong(int n, int tile) { return n <= 1 ? 1 : (n - 1 + tile - 1) / tile; }
 
-// Evaluates pixels [begin, end) of the batch held in `st` (its x, y, d arrays) and writes
-// their airlight into `out` (scattered through bidx unless `identity`).
-static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx& f, std::size_t begin,
-                               std::size_t end, bool identity) {
-  const std::size_t n = end - begin;
+// Evaluates the batch held in `sc` (x, y, d of sc.n pixels) into sc.r, sc.g, sc.b: every lamp,
+// through the SIMD kernels where it can, per pixel otherwise.
+void evaluateBatch(const FrameCtx& f, Scratch& sc) {
+  const AirlightImageEvaluator::State& st = *f.st;
+  const std::size_t n = sc.n;
   if (n == 0) return;
+  const auto t0 = std::chrono::steady_clock::now();
   const std::size_t padded = kernels::paddedSize(n);
-  std::fill_n(st.br.data() + begin, padded, 0.0f);
-  std::fill_n(st.bg.data() + begin, padded, 0.0f);
-  std::fill_n(st.bb.data() + begin, padded, 0.0f);
-  const kernels::PixelBatch px{st.bx.data() + begin, st.by.data() + begin, st.bd.data() + begin, n};
-  float* r = st.br.data() + begin;
-  float* g = st.bg.data() + begin;
-  float* b = st.bb.data() + begin;
+  // Padding lanes: a harmless pixel (the kernels work in whole vectors).
+  for (std::size_t k = n; k < padded; ++k) {
+    sc.x[k] = sc.x[0];
+    sc.y[k] = sc.y[0];
+    sc.d[k] = sc.d[0];
+  }
+  std::fill_n(sc.r.data(), padded, 0.0f);
+  std::fill_n(sc.g.data(), padded, 0.0f);
+  std::fill_n(sc.b.data(), padded, 0.0f);
+  const kernels::PixelBatch px{sc.x.data(), sc.y.data(), sc.d.data(), n};
+  float* r = sc.r.data();
+  float* g = sc.g.data();
+  float* b = sc.b.data();
   if (!st.isoParams.empty())
     kernels::accumulateIsoLamps(*st.isoTable, st.isoParams.data(), st.isoParams.size(), f.geo, px, r, g, b);
-  // The chunk's extent on the tangent plane: inset tables and per-ray guards cover a small
-  // disc, and most chunks do not reach it.
+  // The batch's extent on the tangent plane: inset tables and per-ray guards cover a small
+  // disc, and most batches do not reach it.
   float xMin = px.x[0], xMax = px.x[0], yMin = px.y[0], yMax = px.y[0];
   for (std::size_t k = 1; k < n; ++k) {
     xMin = std::min(xMin, px.x[k]);
@@ -248,46 +306,44 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
     const double da = std::max({aLo - ca, 0.0, ca - aHi}), db = std::max({bLo - cb, 0.0, cb - bHi});
     return da * da + db * db <= r2;
   };
-  // Tables and guards that cover a small disc run on the chunk's pixels inside it only,
-  // compacted into the scratch arrays at the same offset (chunks do not overlap).
+  // Tables and guards that cover a small disc run on the batch's pixels inside it only.
   auto compact = [&](double ca, double cb, double r2) {
     std::size_t m = 0;
     for (std::size_t k = 0; k < n; ++k) {
       const double a = (static_cast<double>(f.geo.cx) - static_cast<double>(px.x[k])) * static_cast<double>(f.geo.invF);
       const double bb = (static_cast<double>(f.geo.cy) - static_cast<double>(px.y[k])) * static_cast<double>(f.geo.invF);
       if ((a - ca) * (a - ca) + (bb - cb) * (bb - cb) > r2) continue;
-      st.sx[begin + m] = px.x[k];
-      st.sy[begin + m] = px.y[k];
-      st.sd[begin + m] = px.d[k];
-      st.sidx[begin + m] = static_cast<std::uint32_t>(k);
+      sc.sx[m] = px.x[k];
+      sc.sy[m] = px.y[k];
+      sc.sd[m] = px.d[k];
+      sc.sidx[m] = static_cast<std::uint32_t>(k);
       ++m;
+    }
+    for (std::size_t k = m; k < kernels::paddedSize(m); ++k) {
+      sc.sx[k] = sc.sx[0];
+      sc.sy[k] = sc.sy[0];
+      sc.sd[k] = sc.sd[0];
     }
     return m;
   };
-  for (std::size_t ti = 0; ti < st.viewTables.size(); ++ti) {
-    const kernels::ViewTable& vt = st.viewTables[ti];
-    if (vt.data.empty() || !st.viewEnabled[ti / kTablesPerLamp]) continue;
-    if (vt.outerR2 >= 1e30f) {
-      kernels::accumulateViewTable(vt, f.geo, px, r, g, b);
+  for (const AirlightImageEvaluator::State::TableUse& tu : st.tableUses) {
+    if (tu.whole) {
+      kernels::accumulateViewTable(*tu.table, tu.use, f.geo, px, r, g, b);
       continue;
     }
-    const double r2 = static_cast<double>(vt.outerR2);
-    if (!reaches(static_cast<double>(vt.guardA), static_cast<double>(vt.guardB), r2)) continue;
-    const std::size_t m = compact(static_cast<double>(vt.guardA), static_cast<double>(vt.guardB), r2);
+    if (!reaches(tu.a, tu.b, tu.r2)) continue;
+    const std::size_t m = compact(tu.a, tu.b, tu.r2);
     if (m == 0) continue;
-    float* sr = st.sr.data() + begin;
-    float* sg = st.sg.data() + begin;
-    float* sb = st.sb.data() + begin;
-    std::fill_n(sr, kernels::paddedSize(m), 0.0f);
-    std::fill_n(sg, kernels::paddedSize(m), 0.0f);
-    std::fill_n(sb, kernels::paddedSize(m), 0.0f);
-    kernels::accumulateViewTable(vt, f.geo, {st.sx.data() + begin, st.sy.data() + begin, st.sd.data() + begin, m}, sr,
-                                 sg, sb);
+    std::fill_n(sc.sr.data(), kernels::paddedSize(m), 0.0f);
+    std::fill_n(sc.sg.data(), kernels::paddedSize(m), 0.0f);
+    std::fill_n(sc.sb.data(), kernels::paddedSize(m), 0.0f);
+    kernels::accumulateViewTable(*tu.table, tu.use, f.geo, {sc.sx.data(), sc.sy.data(), sc.sd.data(), m},
+                                 sc.sr.data(), sc.sg.data(), sc.sb.data());
     for (std::size_t k = 0; k < m; ++k) {
-      const std::size_t t = st.sidx[begin + k];
-      r[t] += sr[k];
-      g[t] += sg[k];
-      b[t] += sb[k];
+      const std::size_t t = sc.sidx[k];
+      r[t] += sc.sr[k];
+      g[t] += sc.sg[k];
+      b[t] += sc.sb[k];
     }
   }
   // Pixels at the image of a vehicle lamp: per ray (see State::rayGuards).
@@ -297,7 +353,7 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
     const std::size_t m = compact(gd.a, gd.b, gd.r2);
     const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
     for (std::size_t c = 0; c < m; ++c) {
-      const std::size_t k = st.sidx[begin + c];
+      const std::size_t k = sc.sidx[c];
       const Ray ray{f.cam->position_m,
                     f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
                     static_cast<double>(px.d[k])};
@@ -330,42 +386,120 @@ static void evaluateBatchChunk(AirlightImageEvaluator::State& st, const FrameCtx
       b[k] += static_cast<float>(acc[2]);
     }
   }
-  float* dst = f.out->rgb.data();
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t p = identity ? begin + k : st.bidx[begin + k];
-    dst[3 * p] = r[k];
-    dst[3 * p + 1] = g[k];
-    dst[3 * p + 2] = b[k];
+  sc.evaluated += n;
+  sc.evalSeconds += since(t0);
+}
+
+// The tile-local view of one tile's closed region [x0, xc] × [y0, yc] (image coordinates).
+struct TileView {
+  int x0, y0, xc, yc;  // closed region, inclusive
+  int x1, y1;          // owned pixels: [x0, x1) × [y0, y1)
+  std::size_t stride;  // plane row stride
+  int cw() const { return xc - x0 + 1; }
+  int ch() const { return yc - y0 + 1; }
+  std::size_t at(int i, int j) const {
+    return static_cast<std::size_t>(j - y0) * stride + static_cast<std::size_t>(i - x0);
+  }
+};
+
+TileView tileView(const FrameCtx& f, std::size_t t, std::size_t stride) {
+  const int W = f.cam->width, H = f.cam->height;
+  const int tx = static_cast<int>(t % static_cast<std::size_t>(f.tilesX));
+  const int ty = static_cast<int>(t / static_cast<std::size_t>(f.tilesX));
+  TileView v{};
+  v.x0 = tx * f.tile;
+  v.y0 = ty * f.tile;
+  v.xc = std::min(v.x0 + f.tile, W - 1);
+  v.yc = std::min(v.y0 + f.tile, H - 1);
+  v.x1 = tx == f.tilesX - 1 ? W : v.x0 + f.tile;
+  v.y1 = ty == f.tilesY - 1 ? H : v.y0 + f.tile;
+  v.stride = stride;
+  return v;
+}
+
+// Adds pixel (i, j) of the tile to the batch unless it was evaluated already.
+void request(const FrameCtx& f, Scratch& sc, const TileView& tv, int i, int j) {
+  const std::size_t k = tv.at(i, j);
+  if (sc.done[k]) return;
+  sc.done[k] = 1;
+  sc.x[sc.n] = static_cast<float>(i) + 0.5f;
+  sc.y[sc.n] = static_cast<float>(j) + 0.5f;
+  sc.d[sc.n] = f.surf->distance[f.idx(i, j)];
+  sc.slot[sc.n] = static_cast<std::uint32_t>(k);
+  ++sc.n;
+}
+
+// Evaluates the batch and stores it into the tile.
+void runTileBatch(const FrameCtx& f, Scratch& sc) {
+  evaluateBatch(f, sc);
+  for (std::size_t k = 0; k < sc.n; ++k) {
+    const std::size_t at = sc.slot[k];
+    sc.pr[at] = sc.r[k];
+    sc.pg[at] = sc.g[k];
+    sc.pb[at] = sc.b[k];
+  }
+  sc.n = 0;
+}
+
+// The distance-edge bits of the tile's closed region, one row of words per pixel row. A pixel
+// is an edge when the second difference of 1/d across it (in x or in y) exceeds depth_edge_rel
+// of the largest 1/d involved: over a plane 1/d is affine in the pixel coordinates up to the
+// slowly varying 1/|ray| factor (second differences ~1e-7 relative), a silhouette or the sky
+// line gives differences of order 1, a crease between two surfaces flags the pixels along it.
+// The image's first and last columns (rows) get no x (y) test.
+void buildTileEdges(const FrameCtx& f, Scratch& sc, const TileView& tv) {
+  const int W = f.cam->width, H = f.cam->height;
+  const int cw = tv.cw(), ch = tv.ch();
+  const float* dist = f.surf->distance.data();
+  // q rows −1 … ch (halo rows outside the image are not read): entry 1 is the column left of
+  // the region, 2 … cw + 1 the region, cw + 2 the column right of it.
+  for (int r = -1; r <= ch; ++r) {
+    const int j = tv.y0 + r;
+    if (j < 0 || j >= H) continue;
+    float* q = sc.q.data() + static_cast<std::size_t>(r + 1) * sc.qStride + 1;
+    const float* drow = dist + f.idx(0, j);
+    const int lo = std::max(tv.x0 - 1, 0), hi = std::min(tv.xc + 1, W - 1);
+    kernels::inverseDistances(drow + lo, static_cast<std::size_t>(hi - lo + 1), q + (lo - (tv.x0 - 1)));
+    // At the image's border a linear extrapolation: second difference 0, no x test there.
+    if (tv.x0 == 0) q[0] = cw > 1 ? 2.0f * q[1] - q[2] : q[1];
+    if (tv.xc == W - 1) q[cw + 1] = cw > 1 ? 2.0f * q[cw] - q[cw - 1] : q[cw];
+  }
+  const float tol = static_cast<float>(f.opt->depth_edge_rel);
+  const std::size_t n = static_cast<std::size_t>(cw) + 2;
+  for (int r = 0; r < ch; ++r) {
+    const int j = tv.y0 + r;
+    const float* c = sc.q.data() + static_cast<std::size_t>(r + 1) * sc.qStride + 1;
+    const bool yTest = j > 0 && j + 1 < H;
+    kernels::distanceEdgeBits(yTest ? c - sc.qStride : nullptr, c, yTest ? c + sc.qStride : nullptr, n, tol, f.edgeFloor,
+                              sc.edges.data() + static_cast<std::size_t>(r) * sc.edgeWords);
   }
 }
 
-namespace {
-
-// Adds pixel (i, j) to the batch unless it was evaluated already.
-void request(AirlightImageEvaluator::State& st, const FrameCtx& f, int i, int j) {
-  const std::size_t k = f.idx(i, j);
-  if (st.done[k]) return;
-  st.done[k] = 1;
-  st.bx[st.bn] = static_cast<float>(i) + 0.5f;
-  st.by[st.bn] = static_cast<float>(j) + 0.5f;
-  st.bd[st.bn] = f.surf->distance[k];
-  st.bidx[st.bn] = static_cast<std::uint32_t>(k);
-  ++st.bn;
+// True when a bit in [from, to] of one row of edge words is set.
+bool anyBits(const std::uint64_t* w, int from, int to) {
+  for (int k = from / 64; k <= to / 64; ++k) {
+    std::uint64_t m = ~std::uint64_t{0};
+    if (k == from / 64) m &= ~std::uint64_t{0} << (from % 64);
+    if (k == to / 64 && to % 64 != 63) m &= (std::uint64_t{1} << (to % 64 + 1)) - 1;
+    if (w[k] & m) return true;
+  }
+  return false;
 }
+
+float lumAt(const Scratch& sc, std::size_t at) { return sc.pr[at] + sc.pg[at] + sc.pb[at]; }
 
 // The block test of the header comment: centre against the corners' bilinear prediction,
 // distance-buffer edges, lamp images.
-bool smoothBlock(const FrameCtx& f, const Block& bl) {
+bool smoothBlock(const FrameCtx& f, const Scratch& sc, const TileView& tv, const Block& bl) {
   const SubsamplingOptions& o = *f.opt;
   const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
-  const float* rgb = f.out->rgb.data();
-  auto px = [&](int i, int j) { return rgb + 3 * f.idx(i, j); };
   const int im = bl.i0 + w / 2, jm = bl.j0 + h / 2;
   const float um = w > 0 ? static_cast<float>(im - bl.i0) / static_cast<float>(w) : 0.0f;
   const float vm = h > 0 ? static_cast<float>(jm - bl.j0) / static_cast<float>(h) : 0.0f;
-  const float predicted = (1 - um) * (1 - vm) * lum(px(bl.i0, bl.j0)) + um * (1 - vm) * lum(px(bl.i1, bl.j0)) +
-                          (1 - um) * vm * lum(px(bl.i0, bl.j1)) + um * vm * lum(px(bl.i1, bl.j1));
-  const float actual = lum(px(im, jm));
+  const float predicted = (1 - um) * (1 - vm) * lumAt(sc, tv.at(bl.i0, bl.j0)) +
+                          um * (1 - vm) * lumAt(sc, tv.at(bl.i1, bl.j0)) +
+                          (1 - um) * vm * lumAt(sc, tv.at(bl.i0, bl.j1)) + um * vm * lumAt(sc, tv.at(bl.i1, bl.j1));
+  const float actual = lumAt(sc, tv.at(im, jm));
   if (std::abs(actual - predicted) >
       static_cast<float>(o.rel_tolerance) * actual + static_cast<float>(o.abs_tolerance_cd_m2))
     return false;
@@ -374,102 +508,197 @@ bool smoothBlock(const FrameCtx& f, const Block& bl) {
     if (x >= bl.i0 - o.lamp_guard_px && x <= bl.i1 + 1 + o.lamp_guard_px && y >= bl.j0 - o.lamp_guard_px &&
         y <= bl.j1 + 1 + o.lamp_guard_px)
       return false;
-  // Distance edges inside the block (a car's silhouette, the horizon) change θd abruptly:
-  // any pixel of the edge mask (buildEdgeSat) in the closed block splits it.
-  const std::size_t w1 = static_cast<std::size_t>(f.cam->width) + 1;
-  const std::uint32_t* S = f.st->edgeSat.data();
-  auto at = [&](int i, int j) { return S[static_cast<std::size_t>(j) * w1 + static_cast<std::size_t>(i)]; };
-  const std::uint32_t edges = at(bl.i1 + 1, bl.j1 + 1) - at(bl.i0, bl.j1 + 1) - at(bl.i1 + 1, bl.j0) + at(bl.i0, bl.j0);
-  return edges == 0;
+  // Distance edges inside the block (a car's silhouette, the horizon) change θd abruptly: any
+  // pixel of the edge mask in the closed block splits it (bit 1 of a row is column x0).
+  for (int j = bl.j0; j <= bl.j1; ++j)
+    if (anyBits(sc.edges.data() + static_cast<std::size_t>(j - tv.y0) * sc.edgeWords, bl.i0 - tv.x0 + 1,
+                bl.i1 - tv.x0 + 1))
+      return false;
+  return true;
 }
 
-// Fills the pixels a leaf owns (columns [i0, i1), rows [j0, j1), plus the image's last column
-// and row) that were not evaluated, by bilinear interpolation of its corners. Ownership is
-// exclusive, so leaves can be filled in parallel without two threads writing one pixel.
-void fillLeaf(const FrameCtx& f, const std::vector<unsigned char>& done, const Block& bl) {
-  const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
-  float* rgb = f.out->rgb.data();
-  const float* c00 = rgb + 3 * f.idx(bl.i0, bl.j0);
-  const float* c10 = rgb + 3 * f.idx(bl.i1, bl.j0);
-  const float* c01 = rgb + 3 * f.idx(bl.i0, bl.j1);
-  const float* c11 = rgb + 3 * f.idx(bl.i1, bl.j1);
-  const int iEnd = bl.i1 == f.cam->width - 1 ? bl.i1 : bl.i1 - 1;
-  const int jEnd = bl.j1 == f.cam->height - 1 ? bl.j1 : bl.j1 - 1;
-  const float invW = w > 0 ? 1.0f / static_cast<float>(w) : 0.0f, invH = h > 0 ? 1.0f / static_cast<float>(h) : 0.0f;
-  for (int j = bl.j0; j <= jEnd; ++j) {
-    // The row's two ends on the block's left and right edges, then linear across.
-    const float v = static_cast<float>(j - bl.j0) * invH;
-    float left[3], step[3];
-    for (int c = 0; c < 3; ++c) {
-      left[c] = c00[c] + v * (c01[c] - c00[c]);
-      step[c] = (c10[c] + v * (c11[c] - c10[c]) - left[c]) * invW;
-    }
-    const std::size_t row = f.idx(0, j);
-    for (int i = bl.i0; i <= iEnd; ++i) {
-      const std::size_t k = row + static_cast<std::size_t>(i);
-      if (done[k]) continue;
-      const float u = static_cast<float>(i - bl.i0);
-      float* p = rgb + 3 * k;
-      p[0] = left[0] + u * step[0];
-      p[1] = left[1] + u * step[1];
-      p[2] = left[2] + u * step[2];
+// Every pixel of one tile evaluated (SubsamplingOptions::full), written to the image.
+void fullTile(const FrameCtx& f, Scratch& sc, std::size_t t) {
+  const TileView tv = tileView(f, t, sc.stride);
+  sc.n = 0;
+  for (int j = tv.y0; j < tv.y1; ++j) {
+    const float* drow = f.surf->distance.data() + f.idx(0, j);
+    for (int i = tv.x0; i < tv.x1; ++i) {
+      sc.x[sc.n] = static_cast<float>(i) + 0.5f;
+      sc.y[sc.n] = static_cast<float>(j) + 0.5f;
+      sc.d[sc.n] = drow[i];
+      ++sc.n;
     }
   }
+  evaluateBatch(f, sc);
+  std::size_t k = 0;
+  for (int j = tv.y0; j < tv.y1; ++j) {
+    float* dst = f.out->rgb.data() + 3 * f.idx(tv.x0, j);
+    for (int i = tv.x0; i < tv.x1; ++i, ++k) {
+      dst[0] = sc.r[k];
+      dst[1] = sc.g[k];
+      dst[2] = sc.b[k];
+      dst += 3;
+    }
+  }
+  sc.n = 0;
 }
 
-// The distance-edge mask and its summed-area table, once per frame. A pixel is an edge when
-// the second difference of 1/d across it (in x or in y) exceeds depth_edge_rel of the largest
-// 1/d involved: over a plane 1/d is affine in the pixel coordinates up to the slowly varying
-// 1/|ray| factor (second differences ~1e-7 relative), a silhouette or the sky line gives
-// differences of order 1, a crease between two surfaces flags the pixels along it.
-void buildEdgeSat(ThreadPool& pool, AirlightImageEvaluator::State& st, const Camera& cam, const SurfaceBuffers& surf,
-                  float tol) {
-  const std::size_t W = static_cast<std::size_t>(cam.width), H = static_cast<std::size_t>(cam.height);
-  const std::size_t w1 = W + 1;
-  st.edgeSat.resize(w1 * (H + 1));
-  st.invDist.resize(W * H);
-  std::fill_n(st.edgeSat.begin(), w1, 0u);  // row 0 of the table
-  struct Job {
-    AirlightImageEvaluator::State* st;
-    const SurfaceBuffers* surf;
-    std::size_t W, H;
-    float tol;
-  } job{&st, &surf, W, H, tol};
-  const Job* jp = &job;
-  // 1/d per pixel (0 for the sky), rows in parallel; branch-free so the loop vectorises.
-  pool.parallelFor(H, [jp](std::size_t j) {
-    const float* d = jp->surf->distance.data() + j * jp->W;
-    float* q = jp->st->invDist.data() + j * jp->W;
-    for (std::size_t i = 0; i < jp->W; ++i) q[i] = 1.0f / d[i];  // 1/+inf = 0
-  });
-  // The mask and its prefix sum along each row, into table row j + 1.
-  pool.parallelFor(H, [jp](std::size_t j) {
-    const std::size_t nw = jp->W, nh = jp->H;
-    const float* q = jp->st->invDist.data();
-    const float* c = q + j * nw;
-    const float* up = j > 0 ? c - nw : c;           // rows beyond the image: no y test
-    const float* dn = j + 1 < nh ? c + nw : c;
-    const bool yTest = j > 0 && j + 1 < nh;
-    std::uint32_t* out = jp->st->edgeSat.data() + (j + 1) * (nw + 1);
-    out[0] = 0;
-    kernels::markDistanceEdges(yTest ? up : nullptr, c, yTest ? dn : nullptr, nw, jp->tol, out + 1);
-    for (std::size_t i = 1; i <= nw; ++i) out[i] += out[i - 1];
-  });
-  // Columns: accumulate the rows, in strips of columns in parallel.
-  constexpr std::size_t kStrip = 256;
-  pool.parallelFor((w1 + kStrip - 1) / kStrip, [jp](std::size_t strip) {
-    const std::size_t nw1 = jp->W + 1;
-    const std::size_t i0 = strip * kStrip, i1 = std::min(nw1, i0 + kStrip);
-    std::uint32_t* S = jp->st->edgeSat.data();
-    for (std::size_t j = 2; j <= jp->H; ++j) {
-      std::uint32_t* row = S + j * nw1;
-      const std::uint32_t* prev = row - nw1;
-      for (std::size_t i = i0; i < i1; ++i) row[i] += prev[i];
+// One tile of the adaptive subsampling: corners from the coarse grid, then level by level the
+// block centres, the block test and the split blocks' new corners, each level's new pixels as
+// one batch; then the leaves interpolated and the tile's pixels written to the image.
+void subsampleTile(const FrameCtx& f, Scratch& sc, const std::vector<float>& coarse, std::size_t t) {
+  const TileView tv = tileView(f, t, sc.stride);
+  const int s = f.step;
+  auto tj = std::chrono::steady_clock::now();
+  for (int r = 0; r < tv.ch(); ++r)
+    std::fill_n(sc.done.data() + static_cast<std::size_t>(r) * sc.stride, static_cast<std::size_t>(tv.cw()), 0);
+  buildTileEdges(f, sc, tv);
+  // Level 0: the coarse blocks, their corners copied from the coarse grid.
+  sc.cur.clear();
+  sc.leaves.clear();
+  auto corner = [&](int i, int j) {
+    const std::size_t k = tv.at(i, j);
+    if (sc.done[k]) return;
+    sc.done[k] = 1;
+    const float* c = coarse.data() + 3 * (static_cast<std::size_t>(f.coarseRow(j)) * static_cast<std::size_t>(f.coarseX) +
+                                          static_cast<std::size_t>(f.coarseCol(i)));
+    sc.pr[k] = c[0];
+    sc.pg[k] = c[1];
+    sc.pb[k] = c[2];
+  };
+  for (int j0 = tv.y0; j0 < tv.yc || j0 == tv.y0; j0 += s) {
+    const int j1 = std::min(j0 + s, tv.yc);
+    for (int i0 = tv.x0; i0 < tv.xc || i0 == tv.x0; i0 += s) {
+      const int i1 = std::min(i0 + s, tv.xc);
+      corner(i0, j0);
+      corner(i1, j0);
+      corner(i0, j1);
+      corner(i1, j1);
+      sc.cur.push_back(Block{i0, j0, i1, j1});
+      if (i1 == tv.xc) break;
     }
-  });
+    if (j1 == tv.yc) break;
+  }
+  sc.judgeSeconds += since(tj);
+  while (!sc.cur.empty()) {
+    // Centres of the blocks that have pixels besides their corners.
+    std::size_t kept = 0;
+    for (const Block& bl : sc.cur) {
+      const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
+      if (w <= 1 && h <= 1) continue;  // every pixel is a corner
+      request(f, sc, tv, bl.i0 + w / 2, bl.j0 + h / 2);
+      sc.cur[kept++] = bl;
+    }
+    sc.cur.resize(kept);
+    runTileBatch(f, sc);
+    tj = std::chrono::steady_clock::now();
+    sc.next.clear();
+    for (const Block& bl : sc.cur) {
+      if (smoothBlock(f, sc, tv, bl)) {
+        sc.leaves.push_back(bl);
+        continue;
+      }
+      // Split: the new corners join the next batch, the quadrants the next level.
+      const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
+      const int im = bl.i0 + w / 2, jm = bl.j0 + h / 2;
+      for (int j : {bl.j0, jm, bl.j1})
+        for (int i : {bl.i0, im, bl.i1}) request(f, sc, tv, i, j);
+      if (w <= 1) {
+        sc.next.push_back(Block{bl.i0, bl.j0, bl.i1, jm});
+        sc.next.push_back(Block{bl.i0, jm, bl.i1, bl.j1});
+      } else if (h <= 1) {
+        sc.next.push_back(Block{bl.i0, bl.j0, im, bl.j1});
+        sc.next.push_back(Block{im, bl.j0, bl.i1, bl.j1});
+      } else {
+        sc.next.push_back(Block{bl.i0, bl.j0, im, jm});
+        sc.next.push_back(Block{im, bl.j0, bl.i1, jm});
+        sc.next.push_back(Block{bl.i0, jm, im, bl.j1});
+        sc.next.push_back(Block{im, jm, bl.i1, bl.j1});
+      }
+    }
+    sc.judgeSeconds += since(tj);
+    runTileBatch(f, sc);
+    std::swap(sc.cur, sc.next);
+  }
+  // Interpolate what was not evaluated: each leaf fills its own pixels (columns [i0, i1), rows
+  // [j0, j1), plus the image's last column and row), then the tile's pixels go to the image.
+  const auto tf = std::chrono::steady_clock::now();
+  sc.fill.clear();
+  for (const Block& bl : sc.leaves) {
+    const int iEnd = bl.i1 == f.cam->width - 1 ? bl.i1 : bl.i1 - 1;
+    const int jEnd = bl.j1 == f.cam->height - 1 ? bl.j1 : bl.j1 - 1;
+    sc.fill.push_back(kernels::FillBlock{bl.i0 - tv.x0, bl.j0 - tv.y0, bl.i1 - bl.i0, bl.j1 - bl.j0,
+                                         std::max(iEnd, bl.i0) - tv.x0, std::max(jEnd, bl.j0) - tv.y0});
+  }
+  kernels::fillBlocks(sc.fill.data(), sc.fill.size(), sc.pr.data(), sc.pg.data(), sc.pb.data(), sc.done.data(),
+                      sc.stride);
+  for (int j = tv.y0; j < tv.y1; ++j) {
+    const std::size_t at = tv.at(tv.x0, j);
+    kernels::interleaveRgb(sc.pr.data() + at, sc.pg.data() + at, sc.pb.data() + at,
+                           static_cast<std::size_t>(tv.x1 - tv.x0), f.out->rgb.data() + 3 * f.idx(tv.x0, j));
+  }
+  kernels::flushStreams();  // the image is read by other threads once the frame is done
+  sc.fillSeconds += since(tf);
 }
 
 }  // namespace
+
+// Sums the frustum tables of enabled vehicle lamps of one colour (same grid) into one, and lists
+// this frame's table lookups (State::tableUses): merged tables over the whole image; inside a
+// merged lamp's hole, its own frustum table subtracted again (the hole is where its insets and
+// per-ray guard take over); frustum tables that were not merged; insets over their rings.
+static void mergeViewTables(AirlightImageEvaluator::State& st) {
+  using TableUse = AirlightImageEvaluator::State::TableUse;
+  st.merged.clear();
+  st.mergedFrom.clear();
+  std::vector<char> inMerged(st.viewLamps.size(), 0);
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
+    const kernels::ViewTable& fv = st.viewTables[kTablesPerLamp * v];
+    if (!st.viewEnabled[v] || fv.data.empty() || inMerged[v]) continue;
+    std::vector<std::size_t> group{v};
+    for (std::size_t u = v + 1; u < st.viewLamps.size(); ++u) {
+      const kernels::ViewTable& fu = st.viewTables[kTablesPerLamp * u];
+      if (st.viewEnabled[u] && !fu.data.empty() && fu.sameGrid(fv) && fu.weight[0] == fv.weight[0] &&
+          fu.weight[1] == fv.weight[1] && fu.weight[2] == fv.weight[2])
+        group.push_back(u);
+    }
+    if (group.size() < 2) continue;
+    kernels::ViewTable m = fv;  // grid, weights; the guard is cleared: it covers everything
+    m.guardA = m.guardB = 0.0f;
+    m.innerR2 = -1.0f;
+    m.outerR2 = 3.0e38f;
+    for (std::size_t k = 1; k < group.size(); ++k) m.add(st.viewTables[kTablesPerLamp * group[k]]);
+    for (std::size_t u : group) inMerged[u] = 1;
+    st.merged.push_back(std::move(m));
+    st.mergedFrom.push_back(std::move(group));
+  }
+  st.tableUses.clear();
+  for (const kernels::ViewTable& m : st.merged) st.tableUses.push_back(TableUse{&m, kernels::ViewTableUse::of(m)});
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
+    if (!st.viewEnabled[v]) continue;
+    const kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
+    if (tables[0].data.empty()) continue;
+    if (!inMerged[v]) {
+      st.tableUses.push_back(TableUse{&tables[0], kernels::ViewTableUse::of(tables[0])});
+    } else if (tables[0].innerR2 >= 0.0f) {
+      kernels::ViewTableUse minus = kernels::ViewTableUse::of(tables[0]);
+      for (float& w : minus.weight) w = -w;
+      minus.outerR2 = tables[0].innerR2;
+      minus.innerR2 = -1.0f;
+      st.tableUses.push_back(TableUse{&tables[0], minus, false, static_cast<double>(tables[0].guardA),
+                                      static_cast<double>(tables[0].guardB), static_cast<double>(minus.outerR2)});
+    }
+    for (std::size_t t = 1; t < kTablesPerLamp; ++t) {
+      const kernels::ViewTable& in = tables[t];
+      if (in.data.empty()) continue;
+      st.tableUses.push_back(TableUse{&in, kernels::ViewTableUse::of(in), false, static_cast<double>(in.guardA),
+                                      static_cast<double>(in.guardB), static_cast<double>(in.outerR2)});
+    }
+  }
+  st.mergedEnabled = st.viewEnabled;
+  st.mergedValid = true;
+}
 
 void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt,
                                       AirlightImage& out) {
@@ -489,7 +718,12 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
 
   // Lamps in camera coordinates: isotropic kernel parameters, view-table validity.
   st.isoParams.clear();
-  for (std::size_t li : st.isoLamps) {
+  st.isoSlot.clear();
+  st.isoSky.resize(2 * kernels::kIsoSkyNodes * st.isoLamps.size());
+  st.isoSkyKey.resize(st.isoLamps.size(), {-1.0f, -1.0f});
+  st.isoSkyStale.resize(st.isoLamps.size());
+  for (std::size_t q = 0; q < st.isoLamps.size(); ++q) {
+    const std::size_t li = st.isoLamps[q];
     if (!st.enabled[li]) continue;
     const AirlightEvaluator& ev = lamps_[li];
     const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
@@ -502,8 +736,43 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
       l.weight[c] = static_cast<float>(ev.medium().albedo * kt * i0 * ev.lamp().color[c]);
     }
     l.kt = static_cast<float>(kt);
+    kernels::setIsoDirection(l);
+    l.sky = st.isoSky.data() + 2 * kernels::kIsoSkyNodes * q;
     st.isoParams.push_back(l);
+    st.isoSlot.push_back(q);
   }
+  // Sky tables of lamps whose distance or fog changed (every moving lamp, every frame the eye
+  // moves): ~0.1 ms each, one lamp per thread.
+  {
+    const auto ts = std::chrono::steady_clock::now();
+    bool any = false;
+    for (std::size_t k = 0; k < st.isoParams.size(); ++k) {
+      const kernels::IsoLamp& l = st.isoParams[k];
+      const float D = std::sqrt(l.pos[0] * l.pos[0] + l.pos[1] * l.pos[1] + l.pos[2] * l.pos[2]);
+      const std::array<float, 2> key{D, l.kt};
+      st.isoSkyStale[k] = key != st.isoSkyKey[st.isoSlot[k]];
+      if (st.isoSkyStale[k]) st.isoSkyKey[st.isoSlot[k]] = key;
+      any = any || st.isoSkyStale[k];
+    }
+    if (any) {
+      State* sp = &st;
+      pool_->parallelFor(st.isoParams.size(), [sp](std::size_t k) {
+        if (!sp->isoSkyStale[k]) return;
+        kernels::buildIsoSky(*sp->isoTable, sp->isoParams[k],
+                             sp->isoSky.data() + 2 * kernels::kIsoSkyNodes * sp->isoSlot[k]);
+      });
+      out.table_seconds += since(ts);
+    }
+  }
+  // One distance scale for every vehicle lamp's tables, so that their frustum tables share a
+  // grid and can be merged.
+  double viewD = 0.0;
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
+    const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
+    viewD = std::max(viewD, kernels::ViewTable::defaultDistanceScale(
+                                ev.medium().extinction_per_m, glm::length(ev.lamp().position_m - cam.position_m)));
+  }
+  bool viewChanged = false;
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
     st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
     const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
@@ -516,8 +785,10 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
                       ev.medium().extinction_per_m,
                       ev.medium().albedo};
     if (st.viewValid[v] && st.viewKeys[v].sameAs(key)) continue;
+    viewChanged = true;
     kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
-    tables[0] = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_);
+    tables[0] = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_,
+                                          viewD);
     for (std::size_t t = 1; t < kTablesPerLamp; ++t) tables[t] = kernels::ViewTable{};
     st.rayGuards[v] = {};
     if (key.lampInCamera.x > 0.0) {
@@ -540,7 +811,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
         const int nodes = static_cast<int>(std::ceil(2.0 * (outer + 2.0 * step) / step)) + 1;
         kernels::ViewTable& in = tables[t];
         in = kernels::ViewTable::buildWindow(ev, cam, la - outer - 2.0 * step, lb - outer - 2.0 * step, nodes, nodes,
-                                             step, st.fast.view_table_distances, *pool_);
+                                             step, st.fast.view_table_distances, *pool_, viewD);
         in.guardA = static_cast<float>(la);
         in.guardB = static_cast<float>(lb);
         in.outerR2 = static_cast<float>(outer * outer);
@@ -552,6 +823,12 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     st.viewKeys[v] = key;
     st.viewValid[v] = true;
     for (std::size_t t = 0; t < kTablesPerLamp; ++t) out.table_seconds += tables[t].build_seconds;
+  }
+  if (viewChanged || st.mergedEnabled != st.viewEnabled) st.mergedValid = false;
+  if (!st.mergedValid) {
+    const auto tm = std::chrono::steady_clock::now();
+    mergeViewTables(st);
+    out.table_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tm).count();
   }
   // Moving lamps through the pencil: a new integrator state when the eye or the lamp moved
   // (spokes are then sampled again as pixels need them; their memory is kept).
@@ -583,153 +860,106 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     st.lampPixels.emplace_back(principal.x - focal * p.y / p.x, principal.y - focal * p.z / p.x);
   }
 
-  const std::size_t cap = kernels::paddedSize(n) + kChunk;
-  if (st.bx.size() < cap) {
-    for (auto* v : {&st.bx, &st.by, &st.bd, &st.br, &st.bg, &st.bb, &st.sx, &st.sy, &st.sd, &st.sr, &st.sg, &st.sb})
-      v->assign(cap, 0.0f);
-    st.bidx.assign(cap, 0);
-    st.sidx.assign(cap, 0);
-  }
-  st.done.assign(n, 0);  // no reallocation once sized
   FrameCtx f{&st, &lamps_, &cam, &surface, &out,
              kernels::PixelGeometry{static_cast<float>(principal.x), static_cast<float>(principal.y),
                                     static_cast<float>(1.0 / focal)},
              &opt};
-  std::size_t evaluated = 0;
+  f.step = std::max(2, opt.coarse_step);
+  // Distance edges wholly beyond d_far, where the fog's transmittance e^{−K_t d} is below
+  // edge_transmittance, are ignored: whatever lies behind them reaches the eye dimmed by at
+  // least that factor, below the block tolerance (the horizon, distant trees).
+  const double etr = opt.edge_transmittance;
+  if (etr > 0.0 && etr < 1.0 && scene.fog.extinction_per_m > 0.0)
+    f.edgeFloor = static_cast<float>(scene.fog.extinction_per_m / -std::log(etr));
+  f.tile = f.step * std::max(1, kTile / f.step);
+  f.tilesX = tilesAlong(cam.width, f.tile);
+  f.tilesY = tilesAlong(cam.height, f.tile);
+  f.coarseX = cam.width <= 1 ? 1 : (cam.width - 1 + f.step - 1) / f.step + 1;
+  f.coarseY = cam.height <= 1 ? 1 : (cam.height - 1 + f.step - 1) / f.step + 1;
 
-  // Evaluates the batch st.bx/by/bd[0, st.bn) over the pool. The closure holds two pointers,
-  // which std::function stores without allocating.
-  out.eval_seconds = out.judge_seconds = out.fill_seconds = 0.0;
-  auto since = [](std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-  };
-  auto runBatch = [&](bool identity) {
-    const auto tb = std::chrono::steady_clock::now();
-    const std::size_t chunks = (st.bn + kChunk - 1) / kChunk;
-    struct Job {
-      State* st;
-      const FrameCtx* f;
-      bool identity;
-    } job{&st, &f, identity};
-    const Job* jp = &job;
-    pool_->parallelFor(chunks, [jp](std::size_t c) {
-      const std::size_t b = c * kChunk, e = std::min(jp->st->bn, b + kChunk);
-      evaluateBatchChunk(*jp->st, *jp->f, b, e, jp->identity);
-    });
-    evaluated += st.bn;
-    st.bn = 0;
-    out.eval_seconds += since(tb);
-  };
-
-  if (opt.full) {
-    if (st.fullW != cam.width || st.fullH != cam.height) {
-      st.fullX.resize(n);
-      st.fullY.resize(n);
-      for (std::size_t k = 0; k < n; ++k) {
-        st.fullX[k] = static_cast<float>(k % static_cast<std::size_t>(cam.width)) + 0.5f;
-        st.fullY[k] = static_cast<float>(k / static_cast<std::size_t>(cam.width)) + 0.5f;
-      }
-      st.fullW = cam.width;
-      st.fullH = cam.height;
+  // Per-thread memory: sized on the first frame and when the tile size grows.
+  const std::size_t side = static_cast<std::size_t>(f.tile) + 1;
+  const std::size_t batch = kernels::paddedSize(std::max(side * side, kChunk));
+  if (st.scratch.size() != pool_->size() || st.scratchBatch < batch || st.scratchTile < side) {
+    st.scratch.assign(pool_->size(), Scratch{});
+    for (Scratch& sc : st.scratch) {
+      for (auto* v : {&sc.x, &sc.y, &sc.d, &sc.r, &sc.g, &sc.b, &sc.sx, &sc.sy, &sc.sd, &sc.sr, &sc.sg, &sc.sb})
+        v->assign(batch, 0.0f);
+      sc.slot.assign(batch, 0);
+      sc.sidx.assign(batch, 0);
+      // Plane rows padded for whole vectors past the region (fillBlocks, distanceEdgeBits).
+      sc.stride = (side + 16 + 15) / 16 * 16;
+      sc.qStride = (side + 3 + 17 + 15) / 16 * 16;
+      sc.edgeWords = (side + 2 + 63) / 64 + 1;
+      for (auto* v : {&sc.pr, &sc.pg, &sc.pb}) v->assign(sc.stride * (side + 1), 0.0f);
+      sc.done.assign(sc.stride * (side + 1), 0);
+      sc.q.assign(sc.qStride * (side + 2), 0.0f);
+      sc.edges.assign(sc.edgeWords * side, 0);
+      sc.cur.reserve(side * side);
+      sc.next.reserve(side * side);
+      sc.leaves.reserve(side * side);
+      sc.fill.reserve(side * side);
     }
-    std::copy(st.fullX.begin(), st.fullX.end(), st.bx.begin());
-    std::copy(st.fullY.begin(), st.fullY.end(), st.by.begin());
-    std::copy(surface.distance.begin(), surface.distance.begin() + static_cast<std::ptrdiff_t>(n), st.bd.begin());
-    st.bn = n;
-    runBatch(true);
-  } else {
-    const int s = std::max(2, opt.coarse_step);
-    {
-      const auto tj = std::chrono::steady_clock::now();
-      buildEdgeSat(*pool_, st, cam, surface, static_cast<float>(opt.depth_edge_rel));
-      out.judge_seconds += since(tj);
-    }
-    // Level 0: the coarse grid's corners.
-    st.cur.clear();
-    st.leaves.clear();
-    for (int j0 = 0; j0 < cam.height - 1 || j0 == 0; j0 += s) {
-      const int j1 = std::min(j0 + s, cam.height - 1);
-      for (int i0 = 0; i0 < cam.width - 1 || i0 == 0; i0 += s) {
-        const int i1 = std::min(i0 + s, cam.width - 1);
-        request(st, f, i0, j0);
-        request(st, f, i1, j0);
-        request(st, f, i0, j1);
-        request(st, f, i1, j1);
-        st.cur.push_back(Block{i0, j0, i1, j1});
-        if (i1 == cam.width - 1) break;
-      }
-      if (j1 == cam.height - 1) break;
-    }
-    runBatch(false);
-    while (!st.cur.empty()) {
-      // Centres of the blocks that have pixels besides their corners.
-      std::size_t kept = 0;
-      for (const Block& bl : st.cur) {
-        const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
-        if (w <= 1 && h <= 1) continue;  // every pixel is a corner
-        request(st, f, bl.i0 + w / 2, bl.j0 + h / 2);
-        st.cur[kept++] = bl;
-      }
-      st.cur.resize(kept);
-      runBatch(false);
-      // Judge every block in parallel.
-      const auto tj = std::chrono::steady_clock::now();
-      st.split.assign(st.cur.size(), 0);
-      {
-        struct Job {
-          State* st;
-          const FrameCtx* f;
-        } job{&st, &f};
-        const Job* jp = &job;
-        const std::size_t nb = st.cur.size(), chunks = (nb + 255) / 256;
-        pool_->parallelFor(chunks, [jp](std::size_t c) {
-          const std::size_t b = c * 256, e = std::min(jp->st->cur.size(), b + 256);
-          for (std::size_t k = b; k < e; ++k) jp->st->split[k] = smoothBlock(*jp->f, jp->st->cur[k]) ? 0 : 1;
-        });
-      }
-      out.judge_seconds += since(tj);
-      // Split blocks: the new corners become the next batch, the quadrants the next level.
-      st.next.clear();
-      for (std::size_t k = 0; k < st.cur.size(); ++k) {
-        const Block bl = st.cur[k];
-        if (!st.split[k]) {
-          st.leaves.push_back(bl);
-          continue;
-        }
-        const int w = bl.i1 - bl.i0, h = bl.j1 - bl.j0;
-        const int im = bl.i0 + w / 2, jm = bl.j0 + h / 2;
-        for (int j : {bl.j0, jm, bl.j1})
-          for (int i : {bl.i0, im, bl.i1}) request(st, f, i, j);
-        if (w <= 1) {
-          st.next.push_back(Block{bl.i0, bl.j0, bl.i1, jm});
-          st.next.push_back(Block{bl.i0, jm, bl.i1, bl.j1});
-        } else if (h <= 1) {
-          st.next.push_back(Block{bl.i0, bl.j0, im, bl.j1});
-          st.next.push_back(Block{im, bl.j0, bl.i1, bl.j1});
-        } else {
-          st.next.push_back(Block{bl.i0, bl.j0, im, jm});
-          st.next.push_back(Block{im, bl.j0, bl.i1, jm});
-          st.next.push_back(Block{bl.i0, jm, im, bl.j1});
-          st.next.push_back(Block{im, jm, bl.i1, bl.j1});
-        }
-      }
-      runBatch(false);
-      std::swap(st.cur, st.next);
-    }
-    // Interpolate what was not evaluated.
-    const auto tf = std::chrono::steady_clock::now();
-    struct Job {
-      State* st;
-      const FrameCtx* f;
-    } job{&st, &f};
-    const Job* jp = &job;
-    const std::size_t chunks = (st.leaves.size() + 255) / 256;
-    pool_->parallelFor(chunks, [jp](std::size_t c) {
-      const std::size_t b = c * 256, e = std::min(jp->st->leaves.size(), b + 256);
-      for (std::size_t k = b; k < e; ++k) fillLeaf(*jp->f, jp->st->done, jp->st->leaves[k]);
-    });
-    out.fill_seconds = since(tf);
+    st.scratchBatch = batch;
+    st.scratchTile = side;
   }
+  for (Scratch& sc : st.scratch) {
+    sc.evaluated = 0;
+    sc.evalSeconds = sc.judgeSeconds = sc.fillSeconds = 0.0;
+  }
+  const std::size_t tiles = static_cast<std::size_t>(f.tilesX) * static_cast<std::size_t>(f.tilesY);
+  // The closures hold two pointers, which std::function stores without allocating.
+  struct Job {
+    State* st;
+    const FrameCtx* f;
+  } job{&st, &f};
+  const Job* jp = &job;
+  if (opt.full) {
+    pool_->parallelForIndexed(tiles, [jp](std::size_t t, unsigned w) { fullTile(*jp->f, jp->st->scratch[w], t); });
+  } else {
+    // The coarse grid's corners, shared by neighbouring tiles: evaluated once, in chunks.
+    const std::size_t nCoarse = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
+    st.coarse.resize(3 * nCoarse);
+    pool_->parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
+      const FrameCtx& fc = *jp->f;
+      Scratch& sc = jp->st->scratch[w];
+      const std::size_t b = c * kChunk;
+      const std::size_t e = std::min(b + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
+      sc.n = 0;
+      for (std::size_t k = b; k < e; ++k) {
+        const int i = std::min(static_cast<int>(k % static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->width - 1);
+        const int j = std::min(static_cast<int>(k / static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->height - 1);
+        sc.x[sc.n] = static_cast<float>(i) + 0.5f;
+        sc.y[sc.n] = static_cast<float>(j) + 0.5f;
+        sc.d[sc.n] = fc.surf->distance[fc.idx(i, j)];
+        ++sc.n;
+      }
+      evaluateBatch(fc, sc);
+      float* dst = jp->st->coarse.data() + 3 * b;
+      for (std::size_t k = 0; k < sc.n; ++k) {
+        dst[3 * k] = sc.r[k];
+        dst[3 * k + 1] = sc.g[k];
+        dst[3 * k + 2] = sc.b[k];
+      }
+      sc.n = 0;
+    });
+    pool_->parallelForIndexed(tiles, [jp](std::size_t t, unsigned w) {
+      subsampleTile(*jp->f, jp->st->scratch[w], jp->st->coarse, t);
+    });
+  }
+  // Stage figures: thread time per stage, divided by the threads (wall time when balanced).
+  std::size_t evaluated = 0;
+  double ev = 0.0, ju = 0.0, fi = 0.0;
+  for (const Scratch& sc : st.scratch) {
+    evaluated += sc.evaluated;
+    ev += sc.evalSeconds;
+    ju += sc.judgeSeconds;
+    fi += sc.fillSeconds;
+  }
+  const double threads = static_cast<double>(pool_->size());
+  out.eval_seconds = ev / threads;
+  out.judge_seconds = ju / threads;
+  out.fill_seconds = fi / threads;
   out.evaluated = evaluated;
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }

@@ -3,6 +3,7 @@
 #include <fogbeam/render/airlight_kernels.hpp>
 
 #include <boost/math/quadrature/gauss.hpp>
+#include <boost/math/quadrature/gauss_kronrod.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -67,6 +68,7 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
       if (auto sp = it->second.lock()) return sp;
   }
   auto t = std::make_shared<IsoTable>();
+  t->phase = phase;
   t->nK = nK;
   t->nZ = nZ;
   t->kMax = static_cast<float>(kMax);
@@ -74,13 +76,13 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
   // logarithmic above, where F changes by a similar fraction per decade.
   const double k0 = 0.01;
   t->k0 = static_cast<float>(k0);
-  const double logSpan = std::log1p(kMax / k0);
+  const double logSpan = pseudoLog2(1.0 + kMax / k0);
   t->uScale = static_cast<float>((nK - 1) / logSpan);
   t->data.assign(static_cast<std::size_t>(nK) * static_cast<std::size_t>(nZ), 0.0f);
   const double dz = 2.0 / (nZ - 1);
   using GL = boost::math::quadrature::gauss<double, 8>;
   for (int i = 0; i < nK; ++i) {
-    const double k = k0 * std::expm1(static_cast<double>(i) / (nK - 1) * logSpan);
+    const double k = k0 * (pseudoExp2(static_cast<double>(i) / (nK - 1) * logSpan) - 1.0);
     float* row = t->data.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(nZ);
     double sum = 0.0, thPrev = -kHalfPi;
     for (int j = 0; j < nZ; ++j) {
@@ -93,15 +95,41 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
       row[j] = static_cast<float>(sum);
     }
   }
+  t->quads.assign(static_cast<std::size_t>(nK - 1) * static_cast<std::size_t>(nZ) * 4, 0.0f);
+  for (int i = 0; i + 1 < nK; ++i)
+    for (int j = 0; j + 1 < nZ; ++j) {
+      const std::size_t at = static_cast<std::size_t>(i) * static_cast<std::size_t>(nZ) + static_cast<std::size_t>(j);
+      float* q = t->quads.data() + 4 * at;
+      q[0] = t->data[at];
+      q[1] = t->data[at + 1];
+      q[2] = t->data[at + static_cast<std::size_t>(nZ)];
+      q[3] = t->data[at + static_cast<std::size_t>(nZ) + 1];
+    }
   std::lock_guard<std::mutex> lock(mutex);
   cache[key] = t;
   return t;
 }
 
+double IsoTable::tailIntegral(double k, double theta) const {
+  if (!(theta < kHalfPi)) return 0.0;
+  if (!(k > 0.0)) {  // no extinction along the ray: the phase function alone
+    using GL = boost::math::quadrature::gauss<double, 15>;
+    return GL::integrate([&](double x) { return evalPhase(phase, -std::sin(x)); }, theta, kHalfPi);
+  }
+  // θ' = π/2 − 2 atan(k/t), so −sin θ' = (k² − t²)/(k² + t²); dθ' = 2k/(k² + t²) dt;
+  // G = e^{−t} p(−sin θ'). The table is float: 1e-7 is tolerance enough.
+  auto f = [&](double t) {
+    const double s = k * k + t * t;
+    return std::exp(-t) * evalPhase(phase, (k * k - t * t) / s) * 2.0 * k / s;
+  };
+  using GK = boost::math::quadrature::gauss_kronrod<double, 31>;
+  return GK::integrate(f, k * std::tan(0.25 * kPi + 0.5 * theta), std::numeric_limits<double>::infinity(), 15, 1e-7);
+}
+
 double IsoTable::lookup(double k, double q) const noexcept {
   int iu = 0, iz = 0;
   double tu = 0.0, tz = 0.0;
-  cell(std::log1p(k / dbl(k0)) * dbl(uScale), nK, iu, tu);
+  cell(pseudoLog2(1.0 + k / dbl(k0)) * dbl(uScale), nK, iu, tu);
   cell((zetaOfQ(q) + 1.0) * 0.5 * (nZ - 1), nZ, iz, tz);
   auto at = [&](int row) {
     const float* c = data.data() + static_cast<std::size_t>(row) * static_cast<std::size_t>(nZ) +
@@ -111,6 +139,80 @@ double IsoTable::lookup(double k, double q) const noexcept {
   const double a = at(iu), b = at(iu + 1);
   return a + tu * (b - a);
 }
+
+double pseudoLog2(double y) noexcept {
+  int e = 0;
+  const double m = std::frexp(y, &e);  // y = m · 2^e, m ∈ [0.5, 1)
+  return static_cast<double>(e - 1) + (2.0 * m - 1.0);
+}
+
+double pseudoExp2(double u) noexcept {
+  const double e = std::floor(u);
+  return std::ldexp(1.0 + (u - e), static_cast<int>(e));
+}
+
+namespace {
+constexpr double kSqrtHalf = 0.70710678118654752440;
+// Node coordinate of half-chord x in an IsoSky half table.
+constexpr double kSkyNodeScale = (kIsoSkyNodes - 1) / kSqrtHalf;
+// Behind the lamp, x = cos γ/2 below this (γ within 2.9° of π) is integrated directly.
+constexpr double kAwaySkyX = 0.025;
+}  // namespace
+
+namespace {
+double isoDistance(const IsoLamp& lamp) {
+  const double px = dbl(lamp.pos[0]), py = dbl(lamp.pos[1]), pz = dbl(lamp.pos[2]);
+  return std::sqrt(px * px + py * py + pz * pz);
+}
+}  // namespace
+
+void setIsoDirection(IsoLamp& lamp) noexcept {
+  const double D = isoDistance(lamp);
+  for (int c = 0; c < 3; ++c) lamp.dir[c] = static_cast<float>(dbl(lamp.pos[c]) / D);
+}
+
+void buildIsoSky(const IsoTable& table, IsoLamp& lamp, float* out) {
+  setIsoDirection(lamp);
+  const double D = isoDistance(lamp);
+  const double kt = dbl(lamp.kt);
+  const double fInf = std::numeric_limits<double>::infinity();
+  for (int half = 0; half < 2; ++half)
+    for (int i = 0; i < kIsoSkyNodes; ++i) {
+      // x = sin γ/2 in front (cos γ/2 behind): cos γ = ±(1 − 2x²), sin γ = 2x √(1 − x²).
+      const double x = static_cast<double>(i) / kSkyNodeScale;
+      const double cosG = (half == 0 ? 1.0 : -1.0) * (1.0 - 2.0 * x * x);
+      const double sinG = 2.0 * x * std::sqrt(1.0 - x * x);
+      const double p = D * cosG, h = D * sinG;
+      const double k = kt * h;
+      // F(k, π/2) − F(k, θ0), θ0 = γ − π/2 (q0 = tan θ0 = −p/h, −∞ on the lamp's own direction):
+      // from the table, or integrated directly within 3° of straight away from the lamp, where
+      // the difference of table values loses its precision (IsoTable::tailIntegral).
+      double tail = 0.0;
+      if (half == 1 && x < kAwaySkyX)
+        tail = x > 0.0 ? table.tailIntegral(k, kHalfPi - 2.0 * std::asin(x)) : 0.0;
+      else
+        tail = table.lookup(k, fInf) - table.lookup(k, h > 0.0 ? -p / h : -fInf);
+      out[half * kIsoSkyNodes + i] = static_cast<float>(std::max(std::exp(-kt * p) / D * tail, 0.0));
+    }
+}
+
+namespace {
+// L_m / (Ω K_t I) of a sky ray from the lamp's IsoSky table (the SIMD kernel's steps in double).
+double isoSkyScalar(const IsoLamp& L, double wx, double wy, double wz) {
+  const double ex = dbl(L.dir[0]), ey = dbl(L.dir[1]), ez = dbl(L.dir[2]);
+  const bool behind = wx * ex + wy * ey + wz * ez < 0.0;
+  const double sg = behind ? -1.0 : 1.0;
+  const double vx = wx - sg * ex, vy = wy - sg * ey, vz = wz - sg * ez;
+  const double x = 0.5 * std::sqrt(vx * vx + vy * vy + vz * vz);
+  int i = 0;
+  double t = 0.0;
+  cell(x * kSkyNodeScale, kIsoSkyNodes, i, t);
+  const float* row = L.sky + (behind ? kIsoSkyNodes : 0) + i;
+  const double v = dbl(row[0]) + t * (dbl(row[1]) - dbl(row[0]));
+  const double sinG = std::max(2.0 * x * std::sqrt(std::max(1.0 - x * x, 0.0)), 1e-7);
+  return v / sinG;
+}
+}  // namespace
 
 void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::size_t nLamps, const PixelGeometry& g,
                               const PixelBatch& px, float* r, float* gr, float* b) {
@@ -122,6 +224,13 @@ void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::
     for (std::size_t l = 0; l < nLamps; ++l) {
       const IsoLamp& L = lamps[l];
       if (!(dist > 0.0)) continue;
+      if (std::isinf(dist) && L.sky) {
+        const double lm = isoSkyScalar(L, invLen, a * invLen, bb * invLen);
+        r[i] += static_cast<float>(lm * dbl(L.weight[0]));
+        gr[i] += static_cast<float>(lm * dbl(L.weight[1]));
+        b[i] += static_cast<float>(lm * dbl(L.weight[2]));
+        continue;
+      }
       const double lx = dbl(L.pos[0]), ly = dbl(L.pos[1]), lz = dbl(L.pos[2]);
       const double p = (lx + a * ly + bb * lz) * invLen;  // (S − O)·ω
       const double cx = ly * bb - lz * a, cy = lz - lx * bb, cz = lx * a - ly;  // (S − O) × (1, a, b)
@@ -138,15 +247,56 @@ void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::
 }
 
 // ---------------------------------------------------------------------------------------------
+double ViewTable::defaultDistanceScale(double kt, double lampDistance) noexcept {
+  return std::clamp(0.3 / kt, 2.0 * lampDistance + 1.0, 200.0);
+}
+
+bool ViewTable::sameGrid(const ViewTable& o) const noexcept {
+  return a0 == o.a0 && b0 == o.b0 && invStep == o.invStep && nA == o.nA && nB == o.nB && nX == o.nX &&
+         distanceScale == o.distanceScale && data.size() == o.data.size();
+}
+
+void ViewTable::add(const ViewTable& o) {
+  for (std::size_t i = 0; i < data.size(); ++i) data[i] += o.data[i];
+  finish();
+}
+
+void ViewTable::finish() {
+  const auto na = static_cast<std::size_t>(nA), nb = static_cast<std::size_t>(nB);
+  const std::size_t last = 2 * static_cast<std::size_t>(nX - 1);
+  auto sky = [&](std::size_t ia, std::size_t ib) {
+    return data[(std::min(ib, nb - 1) * na + std::min(ia, na - 1)) * 2 * static_cast<std::size_t>(nX) + last];
+  };
+  skyQuads.assign(4 * na * nb, 0.0f);
+  for (std::size_t ib = 0; ib < nb; ++ib)
+    for (std::size_t ia = 0; ia < na; ++ia) {
+      float* q = skyQuads.data() + 4 * (ib * na + ia);
+      q[0] = sky(ia, ib);
+      q[1] = sky(ia + 1, ib);
+      q[2] = sky(ia, ib + 1);
+      q[3] = sky(ia + 1, ib + 1);
+    }
+}
+
+ViewTableUse ViewTableUse::of(const ViewTable& t) noexcept {
+  ViewTableUse u;
+  for (int c = 0; c < 3; ++c) u.weight[c] = t.weight[c];
+  u.guardA = t.guardA;
+  u.guardB = t.guardB;
+  u.innerR2 = t.innerR2;
+  u.outerR2 = t.outerR2;
+  return u;
+}
+
 ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
-                           ThreadPool& pool) {
+                           ThreadPool& pool, double distanceScale) {
   const double step = std::tan(radians(stepDeg));
   if (camera.isCentred()) {
     const double ta = std::tan(0.5 * camera.fov_x);
     const double tb = ta * camera.height / camera.width;  // square pixels
     // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
     return buildWindow(lamp, camera, -ta - step, -tb - step, static_cast<int>(std::ceil(2 * ta / step)) + 3,
-                       static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool);
+                       static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool, distanceScale);
   }
   // Off-axis: pixel x ∈ [0, W] maps to a = (cx − x)/f ∈ [(cx − W)/f, cx/f] = [−tan right, tan left]
   // and y ∈ [0, H] to b = (cy − y)/f ∈ [(cy − H)/f, cy/f] = [−tan down, tan up] (PixelGeometry).
@@ -155,11 +305,11 @@ ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, 
   const double aLo = (c.x - camera.width) / f, aHi = c.x / f;
   const double bLo = (c.y - camera.height) / f, bHi = c.y / f;
   return buildWindow(lamp, camera, aLo - step, bLo - step, static_cast<int>(std::ceil((aHi - aLo) / step)) + 3,
-                     static_cast<int>(std::ceil((bHi - bLo) / step)) + 3, step, nX, pool);
+                     static_cast<int>(std::ceil((bHi - bLo) / step)) + 3, step, nX, pool, distanceScale);
 }
 
 ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0, double b0, int nA,
-                                 int nB, double step, int nX, ThreadPool& pool) {
+                                 int nB, double step, int nX, ThreadPool& pool, double distanceScale) {
   const auto t0 = std::chrono::steady_clock::now();
   ViewTable vt;
   vt.nA = std::max(nA, 2);
@@ -172,8 +322,10 @@ ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& ca
   // about a third of the nodes inside the first 0.3 mean free paths and keeps D at least
   // twice the lamp's distance from the eye, where the near-lamp peak sits.
   const Medium& m = lamp.medium();
-  const double lampDist = glm::length(lamp.lamp().position_m - camera.position_m);
-  const double D = std::clamp(0.3 / m.extinction_per_m, 2.0 * lampDist + 1.0, 200.0);
+  const double D = distanceScale > 0.0
+                       ? distanceScale
+                       : defaultDistanceScale(m.extinction_per_m,
+                                              glm::length(lamp.lamp().position_m - camera.position_m));
   vt.distanceScale = static_cast<float>(D);
   for (int c = 0; c < 3; ++c) vt.weight[c] = static_cast<float>(lamp.lamp().color[c]);
   const auto nDir = static_cast<std::size_t>(vt.nA) * static_cast<std::size_t>(vt.nB);
@@ -219,6 +371,7 @@ ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& ca
       }
     }
   });
+  vt.finish();
   vt.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return vt;
 }
@@ -230,7 +383,12 @@ bool ViewTable::covers(double a, double b) const noexcept {
 }
 
 double ViewTable::lookup(double a, double b, double d) const noexcept {
-  if (!(d > 0.0) || !covers(a, b)) return 0.0;
+  if (!covers(a, b)) return 0.0;
+  return lookupAnywhere(a, b, d);
+}
+
+double ViewTable::lookupAnywhere(double a, double b, double d) const noexcept {
+  if (!(d > 0.0)) return 0.0;
   int ia = 0, ib = 0, ix = 0;
   double ta = 0.0, tb = 0.0, tx = 0.0;
   cell((a - dbl(a0)) * dbl(invStep), nA, ia, ta);
@@ -250,13 +408,21 @@ double ViewTable::lookup(double a, double b, double d) const noexcept {
 
 void accumulateViewTableScalar(const ViewTable& table, const PixelGeometry& g, const PixelBatch& px, float* r,
                                float* gr, float* b) {
+  accumulateViewTableScalar(table, ViewTableUse::of(table), g, px, r, gr, b);
+}
+
+void accumulateViewTableScalar(const ViewTable& table, const ViewTableUse& use, const PixelGeometry& g,
+                               const PixelBatch& px, float* r, float* gr, float* b) {
   for (std::size_t i = 0; i < px.n; ++i) {
     const double a = (dbl(g.cx) - dbl(px.x[i])) * dbl(g.invF);
     const double bb = (dbl(g.cy) - dbl(px.y[i])) * dbl(g.invF);
-    const double lm = table.lookup(a, bb, dbl(px.d[i]));
-    r[i] += static_cast<float>(lm * dbl(table.weight[0]));
-    gr[i] += static_cast<float>(lm * dbl(table.weight[1]));
-    b[i] += static_cast<float>(lm * dbl(table.weight[2]));
+    const double da = a - dbl(use.guardA), db = bb - dbl(use.guardB);
+    const double r2 = da * da + db * db;
+    if (!(r2 > dbl(use.innerR2) && r2 <= dbl(use.outerR2))) continue;
+    const double lm = table.lookupAnywhere(a, bb, dbl(px.d[i]));
+    r[i] += static_cast<float>(lm * dbl(use.weight[0]));
+    gr[i] += static_cast<float>(lm * dbl(use.weight[1]));
+    b[i] += static_cast<float>(lm * dbl(use.weight[2]));
   }
 }
 

@@ -4,7 +4,7 @@ namespace fogbeam {
 
 ThreadPool::ThreadPool(unsigned threads) {
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  for (unsigned i = 1; i < threads; ++i) workers_.emplace_back([this] { workerLoop(); });
+  for (unsigned i = 1; i < threads; ++i) workers_.emplace_back([this, i] { workerLoop(i); });
 }
 
 ThreadPool::~ThreadPool() {
@@ -16,11 +16,11 @@ ThreadPool::~ThreadPool() {
   for (auto& t : workers_) t.join();
 }
 
-void ThreadPool::runChunks() {
-  for (std::size_t i = next_.fetch_add(1); i < n_; i = next_.fetch_add(1)) (*fn_)(i);
+void ThreadPool::runChunks(unsigned index) {
+  for (std::size_t i = next_.fetch_add(1); i < n_; i = next_.fetch_add(1)) (*fn_)(i, index);
 }
 
-void ThreadPool::workerLoop() {
+void ThreadPool::workerLoop(unsigned index) {
   std::size_t seen = 0;
   while (true) {
     {
@@ -30,7 +30,7 @@ void ThreadPool::workerLoop() {
       seen = generation_;
       ++busy_;
     }
-    runChunks();
+    runChunks(index);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       --busy_;
@@ -40,8 +40,14 @@ void ThreadPool::workerLoop() {
 }
 
 void ThreadPool::parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn) {
+  // A closure of one pointer: std::function keeps it without allocating.
+  const auto* f = &fn;
+  parallelForIndexed(n, [f](std::size_t i, unsigned) { (*f)(i); });
+}
+
+void ThreadPool::parallelForIndexed(std::size_t n, const std::function<void(std::size_t, unsigned)>& fn) {
   if (workers_.empty() || n <= 1) {
-    for (std::size_t i = 0; i < n; ++i) fn(i);
+    for (std::size_t i = 0; i < n; ++i) fn(i, 0);
     return;
   }
   {
@@ -52,7 +58,7 @@ void ThreadPool::parallelFor(std::size_t n, const std::function<void(std::size_t
     ++generation_;
   }
   wake_.notify_all();
-  runChunks();
+  runChunks(0);
   std::unique_lock<std::mutex> lock(mutex_);
   // Every worker that woke for this generation has finished when busy_ returns to 0 and the
   // counter has run past n (a worker that has not woken yet will find no work left).

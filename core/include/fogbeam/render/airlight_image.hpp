@@ -5,17 +5,22 @@
 // `coarse_step` pixels whose corners are evaluated; a block is filled by bilinear
 // interpolation when its evaluated centre matches the corners' bilinear prediction within the
 // tolerances, its distance buffer has no edge, and no lamp projects into it; otherwise it is
-// split in four, down to single pixels. The refinement runs level by level: each level's
-// new sample points are evaluated together as one batch (SIMD, all threads), then every block
-// is judged in parallel.
-// `full` forces per-pixel evaluation. Work is spread over a persistent thread pool; buffers
-// are sized once, so frames of the same size do not allocate.
+// split in four, down to single pixels. The coarse grid's corners are evaluated first, as one
+// batch over all threads; then the image is cut into tiles of 64 pixels (a multiple of the
+// coarse step), each refined, interpolated and written by one thread with its memory in cache:
+// the distance-edge mask of the tile, level by level the new sample points as one SIMD batch
+// and the block tests, the fill of the leaves, and the tile's rows streamed to the image. A
+// tile owns its pixels; points on the border it shares with the next tile are evaluated by
+// both (a few per cent more evaluations, no shared writes).
+// `full` forces per-pixel evaluation, tile by tile. Buffers are sized once per image and tile
+// size, so frames of the same size do not allocate.
 //
 // Fast path (accurate method, airlight_kernels.hpp): isotropic lamps are evaluated from the
-// phase function's F table and vehicle-mounted lamps from view tables (built once: the lamp is
-// fixed to the eye), by Highway kernels. Measured and spot lamps
-// fixed in the world or on other vehicles go per pixel through the pencil integrator
-// (airlight_pencil.hpp) or per ray (MovingLampPath).
+// phase function's F table (sky pixels from a per-lamp table over the angle to the lamp) and
+// vehicle-mounted lamps from view tables (built once: the lamp is fixed to the eye; lamps of
+// one colour summed into one table), by Highway kernels. Measured and spot lamps fixed in the
+// world or on other vehicles go per pixel through the pencil integrator (airlight_pencil.hpp)
+// or per ray (MovingLampPath).
 //
 // Thread-safety: one evaluate() at a time per AirlightImageEvaluator.
 #pragma once
@@ -42,7 +47,10 @@ struct SubsamplingOptions {
   int coarse_step = 8;        ///< initial block size in pixels (a power of two ≥ 2)
   double rel_tolerance = 0.005; ///< centre vs bilinear prediction: |Δ| ≤ rel · L + abs (luminance sum)
   double abs_tolerance_cd_m2 = 1e-3;
-  double depth_edge_rel = 0.02;  ///< edge: a pixel's 1/d departs from the corners' bilinear 1/d by more than this, relatively
+  double depth_edge_rel = 0.02;  ///< edge: the second difference of 1/d across a pixel exceeds this fraction of the largest 1/d
+  /// Edges beyond the distance where the fog's transmittance e^{−K_t d} falls below this are
+  /// ignored (what lies behind them is dimmed below it); 0 keeps every edge.
+  double edge_transmittance = 0.005;
   int lamp_guard_px = 2;      ///< blocks within this many pixels of a lamp's image are split
 };
 
@@ -73,12 +81,14 @@ struct FastPathOptions {
 struct AirlightImage {
   int width = 0, height = 0;
   std::vector<float> rgb;        ///< 3 per pixel, row 0 at the top
-  std::size_t evaluated = 0;     ///< pixels whose rays were evaluated (the rest interpolated)
+  std::size_t evaluated = 0;     ///< rays evaluated (the rest interpolated; tile borders count twice)
   double seconds = 0.0;          ///< wall time of the last evaluate(), table builds included
-  double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view tables
-  double eval_seconds = 0.0;     ///< part spent evaluating pixels (kernels and per-ray lamps)
-  double judge_seconds = 0.0;    ///< part spent testing blocks (subsampling)
-  double fill_seconds = 0.0;     ///< part spent interpolating (subsampling)
+  double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view and sky tables
+  // The stages run interleaved on all threads: thread time per stage divided by the threads
+  // (equal to wall time when the threads are kept busy).
+  double eval_seconds = 0.0;     ///< evaluating pixels (kernels and per-ray lamps)
+  double judge_seconds = 0.0;    ///< distance edges and block tests (subsampling)
+  double fill_seconds = 0.0;     ///< interpolating and writing the image (subsampling)
 };
 
 class AirlightImageEvaluator {

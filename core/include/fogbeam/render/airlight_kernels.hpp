@@ -8,10 +8,18 @@
 //  * IsoTable — isotropic lamps. For I constant, eq. (3) of Lecocq et al. 2001 is
 //        L_m = Ω K_t I e^{−K_t p} / h · [F(k, θd) − F(k, θ0)],   F(k, θ) = ∫_{−π/2}^{θ} G(k, θ') dθ',
 //    the Sun et al. 2005 "F table": it depends on the phase function only. It is tabulated
-//    over u = log1p(k/k0) / log1p(kmax/k0) and ζ = sgn q (1 − (1 + |q|)^{−1/2}), q = tan θ,
-//    which clusters nodes at θ → ±π/2 like the accurate method's own tables and needs no
-//    trigonometry per pixel; bilinear on a dense grid (8192 ζ nodes): two gathers per row
-//    where cubic Hermite on a coarser one needs four, and gathers are what the kernel waits on.
+//    over u = plog2(1 + k/k0) (pseudoLog2 below: a log axis read off a float's bits) and
+//    ζ = sgn q (1 − (1 + |q|)^{−1/2}), q = tan θ, which clusters nodes at θ → ±π/2 like the
+//    accurate method's own tables and needs no trigonometry per pixel; bilinear on a dense
+//    grid (8192 ζ nodes): two gathers per row where cubic Hermite on a coarser one needs four,
+//    and gathers are what the kernel waits on.
+//  * IsoSky — the same lamp seen against the sky (d = ∞). Then p = D cos γ, h = D sin γ and
+//    θ0 = γ − π/2 depend on the angle γ between the ray and the lamp alone (D = |S − O|), so
+//    L_m · sin γ / (Ω K_t I) = e^{−K_t D cos γ} / D · [F(k, π/2) − F(k, γ − π/2)] is a smooth,
+//    bounded function of γ, tabulated per lamp and frame (microseconds) over the half-chord
+//    x = |ω ∓ e| / 2 (sin γ/2 in front of the lamp's direction, cos γ/2 behind it: both
+//    computed without cancellation). A sky pixel then costs two gathers per lamp instead of
+//    eight, and no logarithm or exponential.
 //  * ViewTable — a lamp fixed to the camera (a vehicle's own headlamps seen from its driver's
 //    eye). Then L_m depends only on the pixel's direction and its distance d, and is tabulated
 //    once from the accurate method (AirlightEvaluator::evaluateCumulative): directions on a
@@ -39,18 +47,38 @@
 
 namespace fogbeam::kernels {
 
-/// F(k, ζ) for one phase function. data: nK rows of nZ values.
+/// The k axis of IsoTable: plog2(y) for y ≥ 1 is the piecewise-linear base-2 logarithm that a
+/// float's bits give, e + (m − 1) for y = 2^e · m, m ∈ [1, 2): exact at powers of two, linear
+/// between, monotone and continuous. It spaces the table's rows like a log axis (14 to 29 rows
+/// per octave at the defaults) and costs one integer subtraction per pixel where log1p costs a
+/// polynomial. pseudoExp2 is its inverse.
+[[nodiscard]] double pseudoLog2(double y) noexcept;
+[[nodiscard]] double pseudoExp2(double u) noexcept;
+
+/// F(k, ζ) for one phase function. data: nK rows of nZ values. quads: the same values as the
+/// SIMD kernel reads them, the four nodes of cell (iu, iz) side by side at 4·(iu·nZ + iz):
+/// F(iu, iz), F(iu, iz + 1), F(iu + 1, iz), F(iu + 1, iz + 1) (one 128-bit load per pixel
+/// where four gathers cost three times as much).
 struct IsoTable {
   int nK = 0, nZ = 0;
   float k0 = 0.0f;         ///< k scale of the log axis
-  float uScale = 0.0f;     ///< (nK − 1) / log1p(kMax / k0)
+  float uScale = 0.0f;     ///< (nK − 1) / plog2(1 + kMax / k0): row coordinate = plog2(1 + k/k0) · uScale
   float kMax = 0.0f;
   std::vector<float> data;
-  [[nodiscard]] std::size_t bytes() const noexcept { return data.size() * sizeof(float); }
+  std::vector<float> quads;
+  Phase phase;  ///< the phase function tabulated
+  [[nodiscard]] std::size_t bytes() const noexcept { return (data.size() + quads.size()) * sizeof(float); }
+  /// F(k, π/2) − F(k, θ) = ∫_θ^{π/2} G(k, θ') dθ' integrated directly (adaptive Gauss–Kronrod
+  /// in t = k tan(π/4 + θ'/2), where G = e^{−t} p is smooth): the table's bilinear values lose
+  /// their relative precision for θ within a few degrees of π/2 at small k (rays looking
+  /// straight away from a lamp).
+  [[nodiscard]] double tailIntegral(double k, double theta) const;
 
   /// Builds (or returns the cached) table for `phase`: nK × nZ nodes, Gauss–Legendre
-  /// integration of G between nodes. About 0.3 s; cached per phase (weakly held).
-  [[nodiscard]] static std::shared_ptr<const IsoTable> get(const Phase& phase, int nK = 192, int nZ = 8192,
+  /// integration of G between nodes. About 0.2 s; cached per phase (weakly held). The
+  /// defaults keep the table within 1e-4 (p95) of the accurate method's integral: the k axis
+  /// sets the error (192 rows: 4e-4, 384: 4e-5 for g = 0.85), ζ beyond 2048 nodes adds nothing.
+  [[nodiscard]] static std::shared_ptr<const IsoTable> get(const Phase& phase, int nK = 384, int nZ = 2048,
                                                            double kMax = 100.0);
   /// Scalar F(k, θ) from the table (double arithmetic): the reference for the SIMD kernel.
   [[nodiscard]] double lookup(double k, double q) const noexcept;
@@ -70,8 +98,25 @@ struct IsoLamp {
   float pos[3] = {0, 0, 0};     ///< lamp − eye in the camera frame, metres
   float weight[3] = {0, 0, 0};  ///< Ω K_t I × colour per channel
   float kt = 0.0f;              ///< extinction coefficient K_t, 1/m
+  /// Sky rays: the lamp's IsoSky table (buildIsoSky, 2·kIsoSkyNodes values; dir must be set),
+  /// or nullptr to evaluate them through the F table like any other ray.
+  const float* sky = nullptr;
+  float dir[3] = {1, 0, 0};     ///< pos / |pos|
 };
 inline constexpr double kMaxIsoOpticalDistance = 60.0;
+
+/// Nodes per half of an IsoSky table: x = i / (n − 1) · √½ for i < n (in front, x = sin γ/2),
+/// the same for i ≥ n behind (x = cos γ/2). 0.16° apart in γ at most; linear interpolation is
+/// then within ~5e-5 of the table's own values (the phase function's forward peak, g ≤ 0.9,
+/// spreads over ≥ 5°).
+inline constexpr int kIsoSkyNodes = 512;
+/// Fills out[0, 2·kIsoSkyNodes) with L_m · sin γ / (Ω K_t I) against the sky for a lamp at
+/// distance |lamp.pos| in fog of extinction lamp.kt (see IsoSky above), from `table` in double
+/// arithmetic (nodes within 3° of straight away from the lamp by IsoTable::tailIntegral), and
+/// sets lamp.dir. About 0.1 ms.
+void buildIsoSky(const IsoTable& table, IsoLamp& lamp, float* out);
+/// Sets lamp.dir from lamp.pos (as buildIsoSky does), for a table kept from an earlier frame.
+void setIsoDirection(IsoLamp& lamp) noexcept;
 
 /// Cached airlight of one camera-fixed lamp over (direction, distance).
 struct ViewTable {
@@ -87,24 +132,44 @@ struct ViewTable {
   float guardA = 0.0f, guardB = 0.0f;
   float innerR2 = -1.0f, outerR2 = 3.0e38f;
   std::vector<float> data;     ///< per direction (b-major), per x node: (L, dL/dx · Δx)
+  /// The sky's values (x = 1) of the four direction nodes of cell (ia, ib) side by side at
+  /// 4·(ib·nA + ia): (ia, ib), (ia + 1, ib), (ia, ib + 1), (ia + 1, ib + 1) (made by finish()).
+  std::vector<float> skyQuads;
   double build_seconds = 0.0;
-  [[nodiscard]] std::size_t bytes() const noexcept { return data.size() * sizeof(float); }
+  [[nodiscard]] std::size_t bytes() const noexcept { return (data.size() + skyQuads.size()) * sizeof(float); }
+  /// Makes skyQuads from data (after a build or add()).
+  void finish();
 
   /// Tabulates `lamp` (built with the accurate method) as seen from `camera`, covering its
   /// frustum (centred or off-axis) with `stepDeg` spacing (in angle at the view axis) and `nX`
   /// distances.
   /// Runs on `pool`.
+  /// `distanceScale` (metres) fixes D of x = d / (d + D); 0 picks defaultDistanceScale(). Tables
+  /// of several lamps built with the same camera, step, nX and D share one grid (sameGrid) and
+  /// can be summed (add).
   [[nodiscard]] static ViewTable build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
-                                       ThreadPool& pool);
+                                       ThreadPool& pool, double distanceScale = 0.0);
   /// The same over a window of the tangent plane: nA × nB nodes from (a0, b0), spacing
   /// `step` in tangent units.
   [[nodiscard]] static ViewTable buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0,
-                                             double b0, int nA, int nB, double step, int nX, ThreadPool& pool);
+                                             double b0, int nA, int nB, double step, int nX, ThreadPool& pool,
+                                             double distanceScale = 0.0);
+  /// D for a lamp at `lampDistance` metres from the eye in fog of extinction `kt`: about a
+  /// third of the distance nodes within 0.3 mean free paths, and D at least twice the lamp's
+  /// distance (the near-lamp peak), clamped to [.., 200 m].
+  [[nodiscard]] static double defaultDistanceScale(double kt, double lampDistance) noexcept;
+  /// True when both tables have the same nodes (window, spacing, distances).
+  [[nodiscard]] bool sameGrid(const ViewTable& o) const noexcept;
+  /// data += o.data (same grid): the airlight of two lamps of one colour in one table, read
+  /// with one set of loads.
+  void add(const ViewTable& o);
   /// True where this table contributes (see innerR2/outerR2).
   [[nodiscard]] bool covers(double a, double b) const noexcept;
   /// Scalar lookup (double arithmetic): the reference for the SIMD kernel. Luminance for
   /// white light, cd/m²; 0 where the table does not cover (a, b).
   [[nodiscard]] double lookup(double a, double b, double d) const noexcept;
+  /// The same without the coverage test.
+  [[nodiscard]] double lookupAnywhere(double a, double b, double d) const noexcept;
 };
 
 /// A batch of pixels, structure of arrays. Arrays hold `n` valid entries and must be
@@ -121,21 +186,59 @@ struct PixelBatch {
 /// rgb[c][i] += Σ_lamps weight_c · L_m(pixel i) for isotropic lamps (SIMD, best target).
 void accumulateIsoLamps(const IsoTable& table, const IsoLamp* lamps, std::size_t nLamps, const PixelGeometry& g,
                         const PixelBatch& px, float* r, float* gr, float* b);
-/// rgb[c][i] += weight_c · L(pixel i) from a view table (SIMD, best target).
+/// How a view table is applied: weights per channel and the annulus innerR2 < r² ≤ outerR2
+/// around (guardA, guardB) where it counts. of() gives the table's own; a merged table's
+/// correction inside one lamp's hole reads that lamp's frustum table with its weights negated
+/// and the hole as the disc.
+struct ViewTableUse {
+  float weight[3] = {1, 1, 1};
+  float guardA = 0.0f, guardB = 0.0f;
+  float innerR2 = -1.0f, outerR2 = 3.0e38f;
+  [[nodiscard]] static ViewTableUse of(const ViewTable& t) noexcept;
+};
+
+/// rgb[c][i] += weight_c · L(pixel i) from a view table (SIMD, best target). Sky pixels
+/// (d = +inf) read the last distance node only: one gather per corner instead of four.
 void accumulateViewTable(const ViewTable& table, const PixelGeometry& g, const PixelBatch& px, float* r, float* gr,
                          float* b);
+void accumulateViewTable(const ViewTable& table, const ViewTableUse& use, const PixelGeometry& g, const PixelBatch& px,
+                         float* r, float* gr, float* b);
 
 /// The same sums in scalar double arithmetic, for tests and as the definition.
 void accumulateIsoLampsScalar(const IsoTable& table, const IsoLamp* lamps, std::size_t nLamps, const PixelGeometry& g,
                               const PixelBatch& px, float* r, float* gr, float* b);
 void accumulateViewTableScalar(const ViewTable& table, const PixelGeometry& g, const PixelBatch& px, float* r,
                                float* gr, float* b);
+void accumulateViewTableScalar(const ViewTable& table, const ViewTableUse& use, const PixelGeometry& g,
+                               const PixelBatch& px, float* r, float* gr, float* b);
 
-/// Distance-edge mask of one image row (SIMD): out[i] = 1 where the second difference of the
-/// inverse distance q across pixel i, along the row (c[i−1], c[i], c[i+1]) or, when `up` and
-/// `dn` (the rows above and below) are given, across the rows, exceeds tol · the largest q
-/// involved; 0 elsewhere. The row's first and last pixels get the cross-row test only.
-void markDistanceEdges(const float* up, const float* c, const float* dn, std::size_t n, float tol, std::uint32_t* out);
+/// Distance-edge bits of one row of inverse distances: bit i of `bits` (64-bit words,
+/// little-endian bit order) is set where the second difference across entry i, along the row or
+/// across the rows, exceeds tol · the largest of the three values, and that largest value
+/// exceeds `floor` (edges wholly beyond 1/floor metres are ignored). c[−1] and c[n … n + 15] (and
+/// the same of up and dn) must be readable; entries 0 and n − 1 get the cross-row test only.
+/// `bits` must hold (n + 63) / 64 + 1 words; they are overwritten.
+void distanceEdgeBits(const float* up, const float* c, const float* dn, std::size_t n, float tol, float floor,
+                      std::uint64_t* bits);
+/// q[i] = 1 / d[i] for i < n (0 for +inf).
+void inverseDistances(const float* d, std::size_t n, float* q);
+
+/// A leaf of the adaptive subsampling in tile-plane coordinates: its corners (i0, j0),
+/// (i0 + w, j0), (i0, j0 + h), (i0 + w, j0 + h) hold evaluated values; columns i0 … iEnd and
+/// rows j0 … jEnd are filled.
+struct FillBlock {
+  std::int32_t i0, j0, w, h, iEnd, jEnd;
+};
+/// Fills every pixel of each block that `done` (one byte per pixel, 0 = not evaluated) does not
+/// mark, in the planes r, g, b (row stride `stride` floats), by bilinear interpolation of the
+/// block's corners. Rows must be readable and writable 16 floats past each block's iEnd.
+void fillBlocks(const FillBlock* blocks, std::size_t n, float* r, float* g, float* b, const std::uint8_t* done,
+                std::size_t stride);
+/// out[3i + c] = plane c [i] for i < n: three planes to interleaved RGB, with non-temporal
+/// stores. Call flushStreams() before another thread reads `out`.
+void interleaveRgb(const float* r, const float* g, const float* b, std::size_t n, float* out);
+/// Orders the non-temporal stores of this thread before its later stores (x86 sfence).
+void flushStreams();
 
 /// Names of the SIMD targets compiled in and supported by this CPU (e.g. "AVX3", "AVX2"),
 /// best first, and the one the kernels dispatch to.

@@ -29,15 +29,18 @@ class ThreadPool {
 
   /// Calls fn(i) for every i in [0, n), spread over the pool; returns when all are done.
   void parallelFor(std::size_t n, const std::function<void(std::size_t)>& fn);
+  /// The same, with fn(i, t): t ∈ [0, size()) names the thread running it (0 = the caller), for
+  /// per-thread scratch memory. Indices go to threads in no fixed order.
+  void parallelForIndexed(std::size_t n, const std::function<void(std::size_t, unsigned)>& fn);
 
  private:
-  void workerLoop();
-  void runChunks();
+  void workerLoop(unsigned index);
+  void runChunks(unsigned index);
 
   std::vector<std::thread> workers_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
-  const std::function<void(std::size_t)>* fn_ = nullptr;
+  const std::function<void(std::size_t, unsigned)>* fn_ = nullptr;
   std::size_t n_ = 0;
   std::atomic<std::size_t> next_{0};
   std::size_t generation_ = 0;
