@@ -49,15 +49,6 @@
 namespace fogbeam::cli {
 
 namespace {
-fogbeam::SubsamplingOptions benchSubOpts() {
-  fogbeam::SubsamplingOptions o;
-  if (const char* e = std::getenv("FB_TOL")) o.rel_tolerance = std::atof(e);
-  if (const char* e = std::getenv("FB_STEP")) o.coarse_step = std::atoi(e);
-  if (const char* e = std::getenv("FB_EDGE")) o.depth_edge_rel = std::atof(e);
-  return o;
-}
-}
-namespace {
 
 using Clock = std::chrono::steady_clock;
 using json = nlohmann::json;
@@ -246,7 +237,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   // them): it is timed on its own and reported as the table build, not as a frame.
   AirlightImage sub;
   const auto tWarm = Clock::now();
-  ev.accurate.evaluate(scene, surface, benchSubOpts(), sub);
+  ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
   const double warmMs = msSince(tWarm);
   const double tableMs = 1e3 * sub.table_seconds;
   // Adaptive subsampling: at least one frame; further frames while they fit the stage budget.
@@ -255,7 +246,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   for (int f = 0; f < o.frames; ++f) {
     if (f > 0 && subTotalMs + subStats.ms.back() > 1e3 * o.stageBudgetSeconds) break;
     const auto t0 = Clock::now();
-    ev.accurate.evaluate(scene, surface, benchSubOpts(), sub);
+    ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
     subStats.ms.push_back(msSince(t0));
     subEval.ms.push_back(1e3 * sub.eval_seconds);
     subJudge.ms.push_back(1e3 * sub.judge_seconds);
