@@ -144,8 +144,9 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
       ->check(CLI::IsMember({"pencil", "per-ray"}));
   sub->add_option("--exposure", o->exposure,
                   "PNG exposure in EV: x = L * 2^EV / (1 cd/m2), Reinhard x/(1+x), sRGB (default 0: 1 cd/m2 = mid-grey)");
-  sub->add_option("--coarse-step", o->coarseStep, "subsampling: initial block size in pixels (default 8)")
-      ->check(CLI::Range(2, 256));
+  sub->add_option("--coarse-step", o->coarseStep,
+                  "subsampling: initial block size in pixels; 0 (default): 16 where 16 px span at most 0.8 deg, else 8")
+      ->check(CLI::Range(0, 256));
   sub->add_option("--tolerance", o->tolerance,
                   "subsampling: relative error allowed between a block's centre and its bilinear prediction (default 0.005)")
       ->check(CLI::Range(0.0, 1.0));

@@ -320,14 +320,24 @@ TEST(AirlightKernels, TileKernelsMatchScalarOnEveryTarget) {
         EXPECT_EQ(bits[(n + 63) / 64], 0u) << t;
       }
     }
-    // Fill: planes of 40 × 20 with a stride of 64, random corner values, some pixels done.
+    // Fill: planes of 40 × 20 with a stride of 64, random values. Evaluated pixels, as the tiles
+    // make them: every corner and centre, and some of each leaf's first row and column.
     const std::size_t stride = 64;
     std::vector<float> planes(3 * stride * 21);
     for (float& v : planes) v = u(rng);
     std::vector<std::uint8_t> done(stride * 21, 0);
-    for (auto& dv : done) dv = u(rng) < 0.2f ? 1 : 0;
     const std::vector<kernels::FillBlock> blocks{{0, 0, 8, 8, 7, 7}, {8, 0, 16, 8, 23, 7}, {24, 0, 1, 1, 24, 0},
-                                                 {0, 8, 4, 12, 4, 19}, {30, 10, 9, 9, 39, 19}};
+                                                 {0, 8, 4, 12, 4, 19}, {30, 10, 9, 9, 39, 19}, {25, 0, 5, 9, 29, 8}};
+    for (const auto& bl : blocks) {
+      auto mark = [&](int i, int j) { done[static_cast<std::size_t>(j) * stride + static_cast<std::size_t>(i)] = 1; };
+      for (int i : {bl.i0, bl.i0 + bl.w})
+        for (int j : {bl.j0, bl.j0 + bl.h}) mark(i, j);
+      mark(bl.i0 + bl.w / 2, bl.j0 + bl.h / 2);
+      for (int i = bl.i0; i <= bl.iEnd; ++i)
+        if (u(rng) < 0.3f) mark(i, bl.j0);
+      for (int j = bl.j0; j <= bl.jEnd; ++j)
+        if (u(rng) < 0.3f) mark(bl.i0, j);
+    }
     std::vector<float> want = planes, got = planes;
     for (const auto& bl : blocks)
       for (int j = bl.j0; j <= bl.jEnd; ++j)

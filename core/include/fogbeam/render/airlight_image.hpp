@@ -5,7 +5,11 @@
 // `coarse_step` pixels whose corners are evaluated; a block is filled by bilinear
 // interpolation when its evaluated centre matches the corners' bilinear prediction within the
 // tolerances, its distance buffer has no edge, and no lamp projects into it; otherwise it is
-// split in four, down to single pixels. The coarse grid's corners are evaluated first, as one
+// split in four, down to single pixels. A block of 4 px or less whose only fault is a distance
+// edge (a silhouette) is filled layer by layer: each pixel from the corners whose distance is
+// within 10 % of its own (along nearby rays the airlight is the same function of direction
+// whatever surface stops them), the centre checked against that prediction, pixels without such
+// a corner evaluated. The coarse grid's corners are evaluated first, as one
 // batch over all threads; then the image is cut into tiles of 64 pixels (a multiple of the
 // coarse step), each refined, interpolated and written by one thread with its memory in cache:
 // the distance-edge mask of the tile, level by level the new sample points as one SIMD batch
@@ -44,7 +48,10 @@ namespace fogbeam {
 
 struct SubsamplingOptions {
   bool full = false;          ///< evaluate every pixel
-  int coarse_step = 8;        ///< initial block size in pixels (a power of two ≥ 2)
+  /// Initial block size in pixels (≥ 2), or 0: chosen from the camera, 16 px where 16 px span
+  /// at most 0.8° (1280 px and more across a 60° view), else 8. Interpolation error follows
+  /// the blocks' angular size, which the airlight's structure (beam edges, glow) sets.
+  int coarse_step = 0;
   double rel_tolerance = 0.005; ///< centre vs bilinear prediction: |Δ| ≤ rel · L + abs (luminance sum)
   double abs_tolerance_cd_m2 = 1e-3;
   double depth_edge_rel = 0.02;  ///< edge: the second difference of 1/d across a pixel exceeds this fraction of the largest 1/d

@@ -220,7 +220,8 @@ void accumulateViewTableScalar(const ViewTable& table, const ViewTableUse& use, 
 /// `bits` must hold (n + 63) / 64 + 1 words; they are overwritten.
 void distanceEdgeBits(const float* up, const float* c, const float* dn, std::size_t n, float tol, float floor,
                       std::uint64_t* bits);
-/// q[i] = 1 / d[i] for i < n (0 for +inf).
+/// q[i] ≈ 1 / d[i] for i < n (0 for +inf), within 4e-4 relative (the hardware estimate where a
+/// target has one): for the distance-edge and layer tests, not for arithmetic.
 void inverseDistances(const float* d, std::size_t n, float* q);
 
 /// A leaf of the adaptive subsampling in tile-plane coordinates: its corners (i0, j0),
