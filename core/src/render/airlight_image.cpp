@@ -719,7 +719,6 @@ void subsampleTile(const FrameCtx& f, Scratch& sc, const std::vector<float>& coa
     }
     if (j1 == tv.yc) break;
   }
-  sc.judgeSeconds += since(tj);
   // Blocks that have pixels besides their corners are tested against their centre; the others
   // are done. Each level's new pixels (the centres of its blocks, which were requested with the
   // corners of the split that made them) are one batch.
