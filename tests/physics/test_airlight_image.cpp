@@ -260,14 +260,15 @@ TEST(AirlightImage, OffAxisImageIsTheCropOfTheCentredImage) {
   EXPECT_LE(p95Sub, 0.01);
 }
 
-// Tiling: with a zero tolerance every block splits, so the subsampled image evaluates every
-// pixel and must equal the full image exactly, whatever the image size against the tile size
-// (64 px) and the coarse step: each pixel written once, by the tile that owns it. Odd sizes,
+// Tiling: with a negative tolerance every block splits (a zero one still accepts a centre that
+// equals its prediction exactly, e.g. where the airlight is 0), so the subsampled image evaluates
+// every pixel and must equal the full image exactly, whatever the image size against the tile size
+// (128 px) and the coarse step: each pixel written once, by the tile that owns it. Odd sizes,
 // one-pixel images and steps that do not divide the tile are included.
-TEST(AirlightImage, ZeroToleranceSubsamplingIsTheFullImageAtAnySize) {
+TEST(AirlightImage, SplittingEveryBlockGivesTheFullImageAtAnySize) {
   for (const auto& [w, h, step] : std::vector<std::tuple<int, int, int>>{
-           {1, 1, 8}, {1, 37, 8}, {37, 1, 8}, {65, 65, 8}, {64, 64, 16}, {129, 66, 8}, {131, 70, 6}, {200, 90, 32},
-           {97, 130, 128}}) {
+           {1, 1, 8}, {1, 37, 8}, {37, 1, 8}, {129, 129, 8}, {128, 128, 16}, {257, 66, 8}, {131, 70, 6}, {300, 140, 32},
+           {97, 130, 128}, {140, 260, 256}}) {
     // Tiling does not depend on how lamps are evaluated: the street lamp (F table) and one
     // oncoming lamp (pencil) everywhere; the vehicle lamps' view tables (the slow part to
     // build) in one size only.
@@ -283,7 +284,7 @@ TEST(AirlightImage, ZeroToleranceSubsamplingIsTheFullImageAtAnySize) {
     SubsamplingOptions exact;
     exact.coarse_step = step;
     exact.rel_tolerance = 0.0;
-    exact.abs_tolerance_cd_m2 = 0.0;
+    exact.abs_tolerance_cd_m2 = -1.0;
     ev->evaluate(scene, surf, exact, sub);
     const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     EXPECT_EQ(full.evaluated, n);

@@ -19,8 +19,10 @@ namespace {
 // every chunk is whole SIMD vectors of any width: kernels::paddedSize).
 constexpr std::size_t kChunk = 2048;
 // The image is cut into tiles of about this many pixels square (a multiple of the coarse step),
-// each refined, interpolated and written by one thread with its memory in cache.
-constexpr int kTile = 64;
+// each refined, interpolated and written by one thread with its memory in cache (about 300 KB).
+// Measured on the bench scene at 1920×1080: 32 px 10.8 ms, 64 px 8.3 ms, 128 px 7.8 ms, 256 px
+// 8.5 ms (per-tile set-up against cache misses).
+constexpr int kTile = 128;
 // View tables per vehicle lamp: the frustum table and two insets around the lamp's image.
 constexpr std::size_t kTablesPerLamp = 3;
 

@@ -10,7 +10,7 @@
 // within 10 % of its own (along nearby rays the airlight is the same function of direction
 // whatever surface stops them), the centre checked against that prediction, pixels without such
 // a corner evaluated. The coarse grid's corners are evaluated first, as one
-// batch over all threads; then the image is cut into tiles of 64 pixels (a multiple of the
+// batch over all threads; then the image is cut into tiles of 128 pixels (a multiple of the
 // coarse step), each refined, interpolated and written by one thread with its memory in cache:
 // the distance-edge mask of the tile, level by level the new sample points as one SIMD batch
 // and the block tests, the fill of the leaves, and the tile's rows streamed to the image. A
