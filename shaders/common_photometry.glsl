@@ -38,7 +38,8 @@ struct LampGpu {
   vec4 axisY;     // xyz: lamp +y in world
   vec4 axisZ;     // xyz: lamp +z in world
   vec4 color;     // rgb: linear colour weights
-  vec4 params;    // x: I₀ [cd] (isotropic, spot peak) or scale (tabulated); y: inner, z: outer [rad]
+  vec4 params;    // x: I₀ [cd] (isotropic, spot peak) or scale (tabulated); y: inner, z: outer [rad];
+                  // w: tabulated: half-angle of the cone about the axis outside which I = 0 [rad]
   ivec4 kind;     // x: KIND_*, y: TYPE_*, z: SYM_*
   ivec4 table;    // x: offset of the h angles in uProfileData, y: nh, z: nv
 };

@@ -2,7 +2,9 @@
 //
 // Frame: clear (sky: L_s = I_a, distance +inf, depth 0) → planes (full-screen triangle,
 // surface_plane.frag) → glTF triangles (surface_mesh.*) with depth = 1/(1 + d) and GL_GREATER →
-// glReadPixels of both attachments into one of two pixel-pack buffer slots + fence.
+// [GPU airlight: a full-screen triangle (airlight_accurate.frag) into a second framebuffer that
+// samples the distance attachment] → glReadPixels of the attachments into one of two pixel-pack
+// buffer slots + fence.
 // collect() waits on the oldest slot's fence, maps its PBOs and copies rows bottom-up into
 // SurfaceBuffers (row 0 = top).
 #include <fogbeam/gl/surface_pass.hpp>
@@ -85,6 +87,14 @@ void setVec(float (&dst)[4], const Vec3& v, double w = 0.0) {
   dst[3] = static_cast<float>(w);
 }
 
+// Same phase function (same kind and parameters): the G-moment table depends on nothing else.
+bool samePhase(const Phase& a, const Phase& b) {
+  if (a.index() != b.index()) return false;
+  if (const auto* x = std::get_if<HenyeyGreensteinPhase>(&a)) return x->g == std::get<HenyeyGreensteinPhase>(b).g;
+  if (const auto* x = std::get_if<FogMiePhase>(&a)) return x->diameter_um == std::get<FogMiePhase>(b).diameter_um;
+  return true;
+}
+
 void GLAPIENTRY debugCallback(GLenum, GLenum type, GLuint, GLenum severity, GLsizei, const GLchar* message, const void*) {
   if (severity == GL_DEBUG_SEVERITY_NOTIFICATION) return;
   std::fprintf(stderr, "fogbeam_gl: GL debug%s: %s\n", type == GL_DEBUG_TYPE_ERROR ? " (error)" : "", message);
@@ -111,13 +121,23 @@ struct GlSurfacePass::Impl {
   GLuint fbo = 0, colorTex = 0, distanceTex = 0, depthRb = 0;
   int fbWidth = 0, fbHeight = 0;
 
+  // GPU airlight stage (setAirlight): its program, framebuffer and texture, and the G-moment
+  // table of the phase function it was uploaded for.
+  std::optional<GpuAirlightOptions> airlight;
+  GLuint airlightProgram = 0, airlightFbo = 0, airlightTex = 0, gMomentTex = 0, gMomentLoTex = 0, gThetaTex = 0;
+  int airlightWidth = 0, airlightHeight = 0;
+  std::optional<GMomentTexels> gTable;
+  Phase gTablePhase;
+  bool gTableUploaded = false;
+
   GLuint lampSsbo = 0, planeSsbo = 0, profileBuffer = 0, profileTex = 0;
   std::vector<std::shared_ptr<const Profile>> uploadedProfiles;  // tabulated profiles in profileBuffer, in order
   std::vector<std::int32_t> profileOffsets;
   GLint maxTextureBufferSize = 0;
 
   struct Slot {
-    GLuint pboColor = 0, pboDistance = 0, query = 0;
+    GLuint pboColor = 0, pboDistance = 0, pboAirlight = 0, query = 0, airlightQuery = 0;
+    bool hasAirlight = false;
     GLsync fence = nullptr;
     int width = 0, height = 0;
     double submitMs = 0.0;
@@ -133,8 +153,16 @@ struct GlSurfacePass::Impl {
       if (s.fence) glDeleteSync(s.fence);
       glDeleteBuffers(1, &s.pboColor);
       glDeleteBuffers(1, &s.pboDistance);
+      glDeleteBuffers(1, &s.pboAirlight);
       if (s.query) glDeleteQueries(1, &s.query);
+      if (s.airlightQuery) glDeleteQueries(1, &s.airlightQuery);
     }
+    glDeleteProgram(airlightProgram);
+    glDeleteFramebuffers(1, &airlightFbo);
+    glDeleteTextures(1, &airlightTex);
+    glDeleteTextures(1, &gMomentTex);
+    glDeleteTextures(1, &gMomentLoTex);
+    glDeleteTextures(1, &gThetaTex);
     glDeleteProgram(planeProgram);
     glDeleteProgram(meshProgram);
     glDeleteVertexArrays(1, &emptyVao);
@@ -197,7 +225,11 @@ struct GlSurfacePass::Impl {
     for (Slot& s : slots) {
       glGenBuffers(1, &s.pboColor);
       glGenBuffers(1, &s.pboDistance);
-      if (timerQuery) glGenQueries(1, &s.query);
+      glGenBuffers(1, &s.pboAirlight);
+      if (timerQuery) {
+        glGenQueries(1, &s.query);
+        glGenQueries(1, &s.airlightQuery);
+      }
     }
     glGenFramebuffers(1, &fbo);
     if (std::string e = gl::glErrors("GL surface pass set-up"); !e.empty()) return Error{e};
@@ -314,6 +346,8 @@ struct GlSurfacePass::Impl {
               g.kind[1] = typeCode(m.type);
               g.kind[2] = symmetryCode(m.symmetry);
               g.params[0] = 1.0f;
+              // Outside this cone about the axis I = 0 (the GPU airlight cuts rays to it).
+              g.params[3] = static_cast<float>(l.profile->supportHalfAngle());
               const auto it = std::find(uploadedProfiles.begin(), uploadedProfiles.end(), l.profile);
               g.table[0] = profileOffsets[static_cast<std::size_t>(it - uploadedProfiles.begin())];
               g.table[1] = static_cast<std::int32_t>(m.horizontal.size());
@@ -369,6 +403,109 @@ struct GlSurfacePass::Impl {
     return glm::mat4(proj * view);
   }
 
+  // The airlight stage's program (compiled on first use: a machine that never asks for it
+  // never compiles it), its target of the frame's size, and the G table of the scene's phase.
+  Status ensureAirlight(const Scene& scene) {
+    if (airlightProgram == 0) {
+      auto prog = gl::linkProgram("surface_fullscreen.vert", "airlight_accurate.frag");
+      if (!prog) return prog.error();
+      airlightProgram = *prog;
+      glGenFramebuffers(1, &airlightFbo);
+      glGenTextures(1, &gMomentTex);
+      glGenTextures(1, &gMomentLoTex);
+      glGenTextures(1, &gThetaTex);
+    }
+    const Camera& cam = scene.camera;
+    if (airlightWidth != cam.width || airlightHeight != cam.height) {
+      glDeleteTextures(1, &airlightTex);
+      glGenTextures(1, &airlightTex);
+      glBindTexture(GL_TEXTURE_2D, airlightTex);
+      glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, cam.width, cam.height);
+      glBindFramebuffer(GL_FRAMEBUFFER, airlightFbo);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, airlightTex, 0);
+      if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        return Error{"airlight framebuffer (RGBA32F) incomplete"};
+      airlightWidth = cam.width;
+      airlightHeight = cam.height;
+    }
+    if (!gTableUploaded || !samePhase(gTablePhase, scene.fog.phase)) {
+      gTable = gMomentTexels(scene.fog.phase, airlight->table);
+      auto upload = [&](GLuint tex, GLenum internal, GLenum format, int w, int h, const std::vector<float>& data) {
+        glBindTexture(GL_TEXTURE_2D, tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, static_cast<GLint>(internal), w, h, 0, format, GL_FLOAT, data.data());
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+      };
+      upload(gMomentTex, GL_RGBA32F, GL_RGBA, gTable->nTheta, gTable->nK, gTable->texels);
+      upload(gMomentLoTex, GL_RGBA32F, GL_RGBA, gTable->nTheta, gTable->nK, gTable->texelsLo);
+      std::vector<float> theta(2 * gTable->theta.size());
+      for (std::size_t j = 0; j < gTable->theta.size(); ++j) {
+        theta[2 * j] = gTable->theta[j];
+        theta[2 * j + 1] = gTable->thetaLo[j];
+      }
+      upload(gThetaTex, GL_RG32F, GL_RG, gTable->nTheta, 1, theta);
+      gTablePhase = scene.fog.phase;
+      gTableUploaded = true;
+    }
+    if (std::string e = gl::glErrors("GPU airlight set-up"); !e.empty()) return Error{e};
+    return Ok{};
+  }
+
+  void drawAirlight(const Scene& scene, Slot& slot) {
+    const Camera& cam = scene.camera;
+    glBindFramebuffer(GL_FRAMEBUFFER, airlightFbo);
+    const GLenum target = GL_COLOR_ATTACHMENT0;
+    glDrawBuffers(1, &target);
+    glViewport(0, 0, cam.width, cam.height);
+    glDisable(GL_DEPTH_TEST);
+    glUseProgram(airlightProgram);
+    auto loc = [&](const char* name) { return glGetUniformLocation(airlightProgram, name); };
+    const glm::mat3 worldFromCamera(cam.worldFromCamera);
+    glUniformMatrix3fv(loc("uWorldFromCamera"), 1, GL_FALSE, glm::value_ptr(worldFromCamera));
+    const Vec2 principal = cam.principalPoint();
+    glUniform3f(loc("uFocalPrincipal"), static_cast<float>(cam.focalLengthPixels()), static_cast<float>(principal.x),
+                static_cast<float>(cam.height - principal.y));
+    glUniform1i(loc("uLampCount"), static_cast<GLint>(scene.lamps.size()));
+    glUniform1f(loc("uExtinction"), static_cast<float>(scene.fog.extinction_per_m));
+    glUniform1f(loc("uAlbedo"), static_cast<float>(scene.fog.albedo));
+    glUniform1i(loc("uPieces"), airlight->pieces);
+    glUniform1i(loc("uGThetaN"), gTable->nTheta);
+    glUniform1i(loc("uGKN"), gTable->nK);
+    glUniform1f(loc("uGK0"), static_cast<float>(gTable->k0));
+    glUniform1f(loc("uGLogSpan"), static_cast<float>(gTable->logSpan));
+    glUniform1f(loc("uGKMax"), static_cast<float>(gTable->kMax));
+    int kind = 0;
+    float phase[4] = {0, 0, 0, 0};
+    if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&scene.fog.phase)) {
+      kind = 1;
+      phase[0] = static_cast<float>(hg->g);
+    } else if (const auto* fm = std::get_if<FogMiePhase>(&scene.fog.phase)) {
+      kind = 2;
+      phase[0] = static_cast<float>(fm->g_hg);
+      phase[1] = static_cast<float>(fm->g_d);
+      phase[2] = static_cast<float>(fm->alpha);
+      phase[3] = static_cast<float>(fm->w);
+    }
+    glUniform1i(loc("uPhaseKind"), kind);
+    glUniform4fv(loc("uPhase"), 1, phase);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_BUFFER, profileTex);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, distanceTex);
+    glActiveTexture(GL_TEXTURE2);
+    glBindTexture(GL_TEXTURE_2D, gMomentTex);
+    glActiveTexture(GL_TEXTURE3);
+    glBindTexture(GL_TEXTURE_2D, gThetaTex);
+    glActiveTexture(GL_TEXTURE4);
+    glBindTexture(GL_TEXTURE_2D, gMomentLoTex);
+    glActiveTexture(GL_TEXTURE0);
+    if (timerQuery) glBeginQuery(GL_TIME_ELAPSED, slot.airlightQuery);
+    glBindVertexArray(emptyVao);
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    if (timerQuery) glEndQuery(GL_TIME_ELAPSED);
+    glBindVertexArray(0);
+  }
+
   Status submit(const Scene& scene) {
     const auto t0 = Clock::now();
     if (Status s = egl->makeCurrent(); !s) return s;
@@ -378,6 +515,9 @@ struct GlSurfacePass::Impl {
     if (Status s = ensureFramebuffer(cam.width, cam.height); !s) return s;
     if (Status s = ensureMesh(scene); !s) return s;
     if (Status s = ensureProfiles(scene); !s) return s;
+    if (airlight) {
+      if (Status s = ensureAirlight(scene); !s) return s;
+    }
     uploadLamps(scene);
     uploadPlanes(scene);
 
@@ -434,11 +574,20 @@ struct GlSurfacePass::Impl {
     }
     if (timerQuery) glEndQuery(GL_TIME_ELAPSED);
     glBindVertexArray(0);
+    slot.hasAirlight = airlight.has_value();
+    if (slot.hasAirlight) drawAirlight(scene, slot);
 
     // Asynchronous readback: glReadPixels into pixel-pack buffers returns at once; the fence
     // tells collect() when the copies are done.
     const auto nPixels = static_cast<GLsizeiptr>(cam.width) * cam.height;
     glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    if (slot.hasAirlight) {
+      glBindBuffer(GL_PIXEL_PACK_BUFFER, slot.pboAirlight);
+      glBufferData(GL_PIXEL_PACK_BUFFER, nPixels * 4 * static_cast<GLsizeiptr>(sizeof(float)), nullptr, GL_STREAM_READ);
+      glReadBuffer(GL_COLOR_ATTACHMENT0);
+      glReadPixels(0, 0, cam.width, cam.height, GL_RGBA, GL_FLOAT, nullptr);
+      glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    }
     glBindBuffer(GL_PIXEL_PACK_BUFFER, slot.pboColor);
     if (slot.width != cam.width || slot.height != cam.height)
       glBufferData(GL_PIXEL_PACK_BUFFER, nPixels * 4 * static_cast<GLsizeiptr>(sizeof(float)), nullptr, GL_STREAM_READ);
@@ -462,7 +611,7 @@ struct GlSurfacePass::Impl {
     return Ok{};
   }
 
-  Status collect(SurfaceBuffers& out) {
+  Status collect(SurfaceBuffers& out, std::vector<float>* airlightOut) {
     if (pending.empty()) return Error{"GlSurfacePass::collect: no frame submitted"};
     if (Status s = egl->makeCurrent(); !s) return s;
     const auto t0 = Clock::now();
@@ -510,6 +659,24 @@ struct GlSurfacePass::Impl {
       std::memcpy(out.distance.data() + uw * static_cast<std::size_t>(j), dist + uw * static_cast<std::size_t>(h - 1 - j),
                   uw * sizeof(float));
     glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+    if (airlightOut) {
+      if (!slot.hasAirlight) return Error{"GlSurfacePass: the frame was submitted without the GPU airlight stage"};
+      airlightOut->resize(3 * n);
+      glBindBuffer(GL_PIXEL_PACK_BUFFER, slot.pboAirlight);
+      const auto* air = static_cast<const float*>(
+          glMapBufferRange(GL_PIXEL_PACK_BUFFER, 0, static_cast<GLsizeiptr>(4 * n * sizeof(float)), GL_MAP_READ_BIT));
+      if (air == nullptr) return Error{"glMapBufferRange (airlight PBO) failed: " + gl::glErrorName(glGetError())};
+      for (int j = 0; j < h; ++j) {
+        const float* src = air + 4 * uw * static_cast<std::size_t>(h - 1 - j);
+        float* dst = airlightOut->data() + 3 * uw * static_cast<std::size_t>(j);
+        for (std::size_t i = 0; i < uw; ++i) {
+          dst[3 * i] = src[4 * i];
+          dst[3 * i + 1] = src[4 * i + 1];
+          dst[3 * i + 2] = src[4 * i + 2];
+        }
+      }
+      glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+    }
     glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
 
     stats.readback_ms = msSince(t0);
@@ -519,6 +686,11 @@ struct GlSurfacePass::Impl {
       GLuint64 ns = 0;
       glGetQueryObjectui64v(slot.query, GL_QUERY_RESULT, &ns);
       stats.surface_ms = static_cast<double>(ns) * 1e-6;
+      stats.airlight_ms = 0.0;
+      if (slot.hasAirlight) {
+        glGetQueryObjectui64v(slot.airlightQuery, GL_QUERY_RESULT, &ns);
+        stats.airlight_ms = static_cast<double>(ns) * 1e-6;
+      }
     }
     if (std::string e = gl::glErrors("surface pass readback"); !e.empty()) return Error{e};
     return Ok{};
@@ -556,14 +728,39 @@ Status GlSurfacePass::render(const Scene& scene, SurfaceBuffers& out) {
   // Wait for frames still in flight from earlier submit() calls so that `out` gets this scene.
   while (!impl_->pending.empty()) {
     SurfaceBuffers discard;
-    if (Status s = impl_->collect(discard); !s) return s;
+    if (Status s = impl_->collect(discard, nullptr); !s) return s;
   }
   if (Status s = impl_->submit(scene); !s) return s;
-  return impl_->collect(out);
+  return impl_->collect(out, nullptr);
+}
+
+Status GlSurfacePass::render(const Scene& scene, SurfaceBuffers& out, std::vector<float>& airlight) {
+  if (!impl_->airlight) return Error{"GlSurfacePass::render: the GPU airlight stage is off (setAirlight)"};
+  while (!impl_->pending.empty()) {
+    SurfaceBuffers discard;
+    if (Status s = impl_->collect(discard, nullptr); !s) return s;
+  }
+  if (Status s = impl_->submit(scene); !s) return s;
+  return impl_->collect(out, &airlight);
 }
 
 Status GlSurfacePass::submit(const Scene& scene) { return impl_->submit(scene); }
-Status GlSurfacePass::collect(SurfaceBuffers& out) { return impl_->collect(out); }
+Status GlSurfacePass::collect(SurfaceBuffers& out) { return impl_->collect(out, nullptr); }
+Status GlSurfacePass::collect(SurfaceBuffers& out, std::vector<float>& airlight) { return impl_->collect(out, &airlight); }
+
+Status GlSurfacePass::setAirlight(const std::optional<GpuAirlightOptions>& options) {
+  if (options && (options->pieces < 1 || options->pieces > 1024))
+    return Error{"GPU airlight: pieces must be in 1..1024, got " + std::to_string(options->pieces)};
+  if (options && impl_->airlight &&
+      (options->table.g_table_theta != impl_->airlight->table.g_table_theta ||
+       options->table.g_table_k != impl_->airlight->table.g_table_k ||
+       options->table.g_table_k_max != impl_->airlight->table.g_table_k_max))
+    impl_->gTableUploaded = false;
+  impl_->airlight = options;
+  return Ok{};
+}
+
+bool GlSurfacePass::airlightEnabled() const noexcept { return impl_->airlight.has_value(); }
 std::string GlSurfacePass::description() const { return impl_->description; }
 const GlSurfaceStats& GlSurfacePass::stats() const noexcept { return impl_->stats; }
 

@@ -423,6 +423,33 @@ double AirlightEvaluator::evaluate(const Ray& ray) const noexcept {
   return 0.0;
 }
 
+GMomentTexels gMomentTexels(const Phase& phase, const AirlightOptions& options) {
+  double seconds = 0.0;
+  const PhaseKey key = phaseKey(phase, options.g_table_theta, options.g_table_k, options.g_table_k_max);
+  const auto g = gCache().get(key, [&] {
+    return std::make_shared<const detail::GMomentTable>(phase, options.g_table_theta, options.g_table_k,
+                                                        options.g_table_k_max);
+  }, seconds);
+  GMomentTexels t;
+  t.nTheta = g->thetaNodes();
+  t.nK = g->kNodes();
+  t.k0 = g->k0();
+  t.logSpan = g->logSpan();
+  t.kMax = g->kMax();
+  auto split = [](double v, std::vector<float>& hi, std::vector<float>& lo) {
+    const auto h = static_cast<float>(v);
+    hi.push_back(h);
+    lo.push_back(static_cast<float>(v - static_cast<double>(h)));
+  };
+  for (double th : g->thetaGrid()) split(th, t.theta, t.thetaLo);
+  t.texels.reserve(static_cast<std::size_t>(t.nK) * static_cast<std::size_t>(t.nTheta) * 4);
+  t.texelsLo.reserve(t.texels.capacity());
+  for (int i = 0; i < t.nK; ++i)
+    for (int j = 0; j < t.nTheta; ++j)
+      for (int q = 0; q < 4; ++q) split(g->cell(i, j)[q], t.texels, t.texelsLo);
+  return t;
+}
+
 void AirlightEvaluator::setPose(const Vec3& position_m, const Mat3& worldFromLamp) noexcept {
   lamp_.position_m = position_m;
   lamp_.worldFromLamp = worldFromLamp;

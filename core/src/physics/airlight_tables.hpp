@@ -48,6 +48,15 @@ class GMomentTable {
   }
   [[nodiscard]] double kMax() const noexcept { return kMax_; }
   [[nodiscard]] std::size_t bytes() const noexcept { return data_.size() * sizeof(double); }
+  [[nodiscard]] int thetaNodes() const noexcept { return nTheta_; }
+  [[nodiscard]] int kNodes() const noexcept { return nK_; }
+  [[nodiscard]] double k0() const noexcept { return k0_; }
+  [[nodiscard]] double logSpan() const noexcept { return logSpan_; }
+  [[nodiscard]] const std::vector<double>& thetaGrid() const noexcept { return theta_; }
+  /// T_0, T_1, T_2, G at (k row i, θ node j).
+  [[nodiscard]] const double* cell(int i, int j) const noexcept {
+    return data_.data() + (static_cast<std::size_t>(i) * static_cast<std::size_t>(nTheta_) + static_cast<std::size_t>(j)) * 4;
+  }
 
  private:
   [[nodiscard]] double thetaAt(int j) const noexcept;

@@ -18,12 +18,15 @@
 // used from separate threads.
 #pragma once
 
+#include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace fogbeam {
 
@@ -41,9 +44,20 @@ struct GlOptions {
 };
 
 /// Timings of the latest render(), milliseconds.
+/// The GPU airlight stage (issue 7): the accurate airlight method per pixel in a fragment shader
+/// (shaders/airlight_accurate.frag), drawn after the surfaces from their distance attachment in
+/// the same context, so the airlight does not wait for a CPU round trip. Measured and spot
+/// profiles are integrated in `pieces` quadratic pieces per ray (the CPU's accurate method also
+/// cuts at the profile's feature lines; here the pieces are finer instead).
+struct GpuAirlightOptions {
+  int pieces = 64;             ///< quadratic pieces per ray, measured profiles (spot rings: pieces/8)
+  AirlightOptions table{};     ///< G-moment table resolution (as AirlightMethod::Accurate)
+};
+
 struct GlSurfaceStats {
   double surface_ms = 0.0;   ///< GPU time of the surface draws (GL_TIME_ELAPSED; CPU wall time if no timer query)
   double readback_ms = 0.0;  ///< CPU time waiting for the PBO fence, mapping and copying into SurfaceBuffers
+  double airlight_ms = 0.0;  ///< GPU time of the airlight draw (GL_TIME_ELAPSED; 0 without the stage or the query)
   double submit_ms = 0.0;    ///< CPU time to upload lamps/planes and issue the draws and the readback
   std::size_t triangles = 0; ///< glTF triangles drawn
 };
@@ -70,6 +84,16 @@ class GlSurfacePass {
   /// frame it has just submitted. render() is submit() then collect().
   [[nodiscard]] Status submit(const Scene& scene);
   [[nodiscard]] Status collect(SurfaceBuffers& out);
+
+  /// Turns the GPU airlight stage on (or off: `options` empty) for frames submitted from now on.
+  /// Fails when `options` are out of range (pieces 1–1024).
+  [[nodiscard]] Status setAirlight(const std::optional<GpuAirlightOptions>& options);
+  [[nodiscard]] bool airlightEnabled() const noexcept;
+  /// render()/collect() that also return the airlight of every lamp of the scene, in cd/m² per
+  /// channel (3 floats per pixel, row 0 at the top): needs setAirlight() before the frame's
+  /// submit(). `airlight` is resized.
+  [[nodiscard]] Status render(const Scene& scene, SurfaceBuffers& out, std::vector<float>& airlight);
+  [[nodiscard]] Status collect(SurfaceBuffers& out, std::vector<float>& airlight);
 
   /// "vendor | renderer | version | EGL platform", e.g. "Mesa | llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core
   /// Profile) Mesa 22.3.6 | surfaceless".

@@ -133,4 +133,19 @@ struct RayLampGeometry {
 /// G(k, θ) of eq. (3) for a phase function.
 [[nodiscard]] double integrandG(const Phase& phase, double k, double theta) noexcept;
 
+/// The accurate method's cumulative G moments T_q(k, θ) = ∫_{−π/2}^{θ} θ'^q G(k, θ') dθ' for one
+/// phase function, in float, as the GPU path uploads them (docs/airlight.md, "GPU path"). The
+/// same table (and cache) as AirlightMethod::Accurate with `options`.
+struct GMomentTexels {
+  int nTheta = 0, nK = 0;
+  double k0 = 0.0;       ///< k scale: row coordinate u = log1p(k/k0) / logSpan · (nK − 1)
+  double logSpan = 0.0;  ///< log1p(kMax/k0)
+  double kMax = 0.0;     ///< largest tabulated k
+  std::vector<float> theta;   ///< the θ nodes (radians), nTheta
+  std::vector<float> texels;  ///< per k row, per θ node: T_0, T_1, T_2, G (nK × nTheta × 4)
+  // The double values are hi + lo (lo = value − hi, float): the GPU rebuilds them in double.
+  std::vector<float> thetaLo, texelsLo;
+};
+[[nodiscard]] GMomentTexels gMomentTexels(const Phase& phase, const AirlightOptions& options = {});
+
 }  // namespace fogbeam
