@@ -34,6 +34,8 @@ Status writeFrameLayers(const FrameLayers& l, const std::string& path) {
     add3("overlay", l.overlay);
     add1("transmittance.Y", l.transmittance);
     add1("distance.Z", l.distance);
+    if (l.glow.size() == l.composite.size()) add3("glow", l.glow);
+    if (l.glare.size() == l.composite.size()) add3("glare", l.glare);
     Imf::OutputFile file(path.c_str(), header);
     file.setFrameBuffer(fb);
     file.writePixels(l.height);

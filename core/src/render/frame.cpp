@@ -5,7 +5,8 @@
 
 namespace fogbeam {
 
-void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const AirlightImage& airlight, FrameLayers& out) {
+void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const AirlightImage& airlight, FrameLayers& out,
+                    const EffectLayers& effects) {
   out.width = surface.width;
   out.height = surface.height;
   const auto n = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);
@@ -15,6 +16,14 @@ void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const Airl
   out.overlay.resize(3 * n);
   out.transmittance.resize(n);
   out.distance.assign(surface.distance.begin(), surface.distance.end());
+  // A layer of the wrong size (an effect switched on after the buffers were sized) is left out
+  // rather than read out of bounds.
+  auto usable = [&](const std::vector<float>* v) { return v != nullptr && v->size() == 3 * n; };
+  const bool glow = usable(effects.glow), glare = usable(effects.glare);
+  if (glow) out.glow.assign(effects.glow->begin(), effects.glow->end());
+  else out.glow.clear();
+  if (glare) out.glare.assign(effects.glare->begin(), effects.glare->end());
+  else out.glare.clear();
   const double kt = fog.extinction_per_m;
   const auto ia = static_cast<float>(fog.ambient_cd_m2);
   for (std::size_t k = 0; k < n; ++k) {
@@ -22,8 +31,11 @@ void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const Airl
     const float t = std::isinf(d) ? 0.0f : static_cast<float>(std::exp(-kt * static_cast<double>(d)));
     out.transmittance[k] = t;
     for (std::size_t c = 0; c < 3; ++c) {
-      out.composite[3 * k + c] = surface.rgb[3 * k + c] + airlight.rgb[3 * k + c];
-      out.overlay[3 * k + c] = airlight.rgb[3 * k + c] + ia * (1.0f - t);
+      float front = airlight.rgb[3 * k + c];
+      if (glow) front += (*effects.glow)[3 * k + c];
+      if (glare) front += (*effects.glare)[3 * k + c];
+      out.composite[3 * k + c] = surface.rgb[3 * k + c] + front;
+      out.overlay[3 * k + c] = front + ia * (1.0f - t);
     }
   }
 }

@@ -26,7 +26,94 @@ double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
+// Φ[L] R² / (2π) pieces: the trapezoid rule in θ over the nodes of f(θ) = L cos θ sin θ, the
+// first interval [0, θ₁] as f(θ₁) θ₁ (L sin θ tends to a constant as θ → 0: S₁ ∝ 1/h).
+double fluxOver(const std::vector<double>& theta, const std::vector<double>& L) {
+  double sum = 0.0;
+  auto f = [&](std::size_t i) { return L[i] * std::cos(theta[i]) * std::sin(theta[i]); };
+  if (theta.size() > 1) sum += f(1) * theta[1];
+  for (std::size_t i = 2; i < theta.size(); ++i) sum += 0.5 * (f(i - 1) + f(i)) * (theta[i] - theta[i - 1]);
+  return 2.0 * kPi * sum;
+}
+
 }  // namespace
+
+Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, double distance_m, int nodes) {
+  const double kt = fog.extinction_per_m, R = distance_m, T = kt * R;
+  if (nodes < 16) return Error{"glow: at least 16 nodes"};
+  const double q = std::clamp(meanCosine(fog.phase), 0.0, 0.99);
+  auto apsf = Apsf::build(T, q);
+  if (!apsf) return apsf.error();
+  GlowCurve c;
+  c.terms = apsf->terms();
+  const auto n = static_cast<std::size_t>(nodes);
+  c.theta.resize(n);
+  c.single.resize(n);
+  c.apsf.resize(n);
+  c.glow.assign(n, 0.0);
+  std::vector<double> excess(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double u = static_cast<double>(i) / static_cast<double>(n - 1);
+    const double theta = 2.0 * std::asin(std::min(u * u, 1.0));
+    c.theta[i] = theta;
+    const double cosT = std::cos(theta), sinT = std::sin(theta);
+    // S₁ for the sky ray at θ from the source (eq. 3 with the F table, Ω = 1, I = 1 cd):
+    // K_t e^{−K_t R cos θ} / h · [F(k, π/2) − F(k, θ0)], h = R sin θ, k = K_t h, θ0 = θ − π/2.
+    // Rays looking away from the source (θ0 > 0): the tail integral directly (the table's
+    // difference of two O(1) values would be amplified by e^{K_t R |cos θ|}).
+    // At θ = 0 (towards the source) S₁ ~ 1/θ: +inf; at θ = π it is finite and weighs nothing
+    // in the flux (sin θ = 0) nor on screen: 0.
+    double single = theta < 0.5 * kPi ? std::numeric_limits<double>::infinity() : 0.0;
+    if (sinT > 1e-12) {
+      const double h = R * sinT, k = kt * h, th0 = theta - 0.5 * kPi;
+      const double bracket = th0 > 0.0 ? table.tailIntegral(k, th0)
+                                       : table.lookup(k, std::numeric_limits<double>::infinity()) -
+                                             table.lookup(k, -cosT / sinT);
+      single = kt * std::exp(-kt * R * cosT) / h * std::max(bracket, 0.0);
+    }
+    c.single[i] = single;
+    c.apsf[i] = apsf->radiance(cosT, 1.0, kt);
+    excess[i] = std::max(0.0, c.apsf[i] - single);
+  }
+  // Energy (header comment): R² Φ[S₁ + λ·excess] = 1 − e^{−T} for 1 cd; the multiple part then
+  // × Ω², the single part × Ω (as the airlight layer has it).
+  const double R2 = R * R;
+  const double singleFlux1 = R2 * fluxOver(c.theta, c.single);
+  const double excessFlux = R2 * fluxOver(c.theta, excess);
+  const double multipleFlux1 = (1.0 - std::exp(-T)) - singleFlux1;
+  const double omega = fog.albedo;
+  c.single_flux = omega * singleFlux1;
+  if (multipleFlux1 > 0.0 && excessFlux > 0.0) {
+    c.scale = multipleFlux1 / excessFlux;
+    for (std::size_t i = 0; i < n; ++i) c.glow[i] = omega * omega * c.scale * excess[i];
+    c.multiple_flux = omega * omega * multipleFlux1;
+  }
+  return c;
+}
+
+double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q) {
+  const Vec3 d = eye - lamp.position_m;
+  const double len = glm::length(d);
+  if (!(len > 0.0)) return 0.0;
+  const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);
+  const Vec3 axis = lampFromWorld * (d / len);  // towards the eye, lamp frame
+  const double cosPsi = std::max(std::pow(std::clamp(q, 0.0, 1.0), opticalDistance), 0.5);
+  // Equal solid angles: 8 bands uniform in cos ψ' × 16 azimuths, one sample at each band's
+  // middle (a lamp's profile is smooth on this scale; the cone is ≥ 6° wide for T ≥ 1.1, q ≤ 0.99).
+  const Vec3 helper = std::abs(axis.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
+  const Vec3 u = glm::normalize(glm::cross(axis, helper)), v = glm::cross(axis, u);
+  constexpr int kBands = 8, kAzimuths = 16;
+  double sum = 0.0;
+  for (int b = 0; b < kBands; ++b) {
+    const double c = 1.0 - (static_cast<double>(b) + 0.5) / kBands * (1.0 - cosPsi);
+    const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+    for (int a = 0; a < kAzimuths; ++a) {
+      const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
+      sum += lamp.profile->intensity(c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v));
+    }
+  }
+  return sum / (kBands * kAzimuths);
+}
 
 struct LampEffects::Tables {
   std::shared_ptr<const kernels::IsoTable> iso;  // single scattering of the glow's isotropic source
@@ -89,9 +176,15 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   t.glare.clear();
   const double q = std::clamp(meanCosine(fog.phase), 0.0, 0.99);
 
+  // The scene may hold more lamps than at build() (traffic arriving): they start switched on;
+  // the buffers grow only then, so a steady scene allocates nothing per frame.
+  if (enabled_.size() < scene.lamps.size()) enabled_.resize(scene.lamps.size(), 1);
+  if (t.glowTables.size() < static_cast<std::size_t>(kNodes) * scene.lamps.size())
+    t.glowTables.resize(static_cast<std::size_t>(kNodes) * scene.lamps.size());
+
   // Per lamp: where it is, whether a surface hides it, its light towards the eye.
   const auto tGlow = std::chrono::steady_clock::now();
-  for (std::size_t li = 0; li < scene.lamps.size() && li < enabled_.size(); ++li) {
+  for (std::size_t li = 0; li < scene.lamps.size(); ++li) {
     if (!enabled_[li]) continue;
     const SceneLamp& sl = scene.lamps[li];
     const Lamp& lamp = sl.lamp;
@@ -129,27 +222,19 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
                                                                glare_.age_years, glare_.pigmentation);
     }
     if (glow_.enabled && rep.visible && rep.optical_distance >= Apsf::minOpticalDistance()) {
-      auto apsf = Apsf::build(rep.optical_distance, q);
-      if (apsf) {
-        rep.apsf_terms = apsf->terms();
+      auto curve = glowCurve(*t.iso, fog, R, kNodes);
+      if (curve) {
+        rep.apsf_terms = curve->terms;
+        rep.glow_scale = curve->scale;
+        const double total = curve->single_flux + curve->multiple_flux;
+        rep.glow_share = total > 0.0 ? curve->multiple_flux / total : 0.0;
+        rep.glow_source_cd = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
         const double fade = std::clamp((rep.optical_distance - Apsf::minOpticalDistance()) /
                                            (glow_.fade_in - Apsf::minOpticalDistance() + 1e-12),
                                        0.0, 1.0);
         float* table = t.glowTables.data() + static_cast<std::size_t>(kNodes) * li;
-        const double I = rep.intensity_cd, weight = fog.albedo * kt * I;
         for (int i = 0; i < kNodes; ++i) {
-          const double s = sOfNode(i), theta = thetaOfS(s);
-          const double cosT = std::cos(theta), sinT = std::sin(theta);
-          // Single scattering of the same isotropic source along this sky ray (eq. 3, F table):
-          // Ω K_t I e^{−K_t R cos θ} / (R sin θ) · [F(k, π/2) − F(k, θ − π/2)], k = K_t R sin θ.
-          double single = std::numeric_limits<double>::infinity();
-          if (sinT > 1e-9) {
-            const double h = R * sinT, k = kt * h;
-            single = weight * std::exp(-kt * R * cosT) / h *
-                     (t.iso->lookup(k, std::numeric_limits<double>::infinity()) - t.iso->lookup(k, -cosT / sinT));
-          }
-          const double total = fog.albedo * apsf->radiance(cosT, I, kt);
-          const double g = fade * std::max(0.0, total - single);
+          const double g = fade * rep.glow_source_cd * curve->glow[static_cast<std::size_t>(i)];
           table[i] = static_cast<float>(g);
           rep.glow_peak_cd_m2 = std::max(rep.glow_peak_cd_m2, g);
         }

@@ -31,6 +31,9 @@ constexpr std::array kTopKeys{
     KeySpec{"lamp", "array of tables [[lamp]], optional, any number"},
     KeySpec{"plane", "array of tables [[plane]], optional, any number"},
     KeySpec{"gltf", "string, path relative to the scene file, optional; the file must exist"},
+    KeySpec{"glow", "table [glow], optional: multiple-scattering glow around lamps (docs/scene.md)"},
+    KeySpec{"glare", "table [glare], optional: the driver's disability glare (docs/scene.md)"},
+    KeySpec{"render", "table [render], optional: where the airlight is computed (docs/scene.md)"},
 };
 
 constexpr std::array kCameraKeys{
@@ -146,7 +149,9 @@ Scene parseRoot(const toml::table& root, const std::string& name, const std::str
       s.fail(n ? lineOf(n->source()) : s.line(), "name", "expected a unique name, found " + inQuotes(lamp.name) +
                                                              " again (first used by " + it->second + ")");
     }
-    scene.lamps.push_back(std::move(lamp));
+    // A lamp with an aperture becomes its point lamps here, so that every renderer of the
+    // scene (airlight, GL and CPU surfaces) sees the near field without knowing of apertures.
+    for (SceneLamp& point : expandSceneLamp(lamp)) scene.lamps.push_back(std::move(point));
   });
   top.forEachEntry("plane", [&](const toml::table& t, std::string label, std::size_t) {
     scene.planes.push_back(parsePlane(Section(name, t, std::move(label))));
@@ -157,10 +162,26 @@ Scene parseRoot(const toml::table& root, const std::string& name, const std::str
     if (std::string problem = checkFile(path); !problem.empty()) top.failAt(*top.find("gltf"), "gltf", problem);
     scene.gltf_path = path;
   }
+  scene.effects = parseEffects(top);
   return scene;
 }
 
 }  // namespace
+
+std::vector<SceneLamp> expandSceneLamp(const SceneLamp& lamp) {
+  if (lamp.aperture.shape == ApertureShape::Point) return {lamp};
+  const std::vector<Lamp> points = expandAperture(lamp.lamp, lamp.aperture);
+  std::vector<SceneLamp> out;
+  out.reserve(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    SceneLamp p;
+    p.name = lamp.name + " [" + std::to_string(k + 1) + "/" + std::to_string(points.size()) + "]";
+    p.lamp = points[k];
+    p.mount = lamp.mount;
+    out.push_back(std::move(p));
+  }
+  return out;
+}
 
 Result<Scene> parseScene(std::string_view text, const std::string& name, const std::string& baseDir) {
   return parseTomlFile<Scene>(text, name, [&](const toml::table& root) { return parseRoot(root, name, baseDir); });

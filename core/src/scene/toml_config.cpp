@@ -41,7 +41,17 @@ constexpr std::array kLampKeys{
     KeySpec{"scale", "number, default 1, > 0; multiplies every candela value (meant for files)"},
     KeySpec{"color", "[r, g, b], default [1, 1, 1], each >= 0"},
     KeySpec{"mount", "string, default \"world\": \"world\" | \"vehicle\" (moves with the camera)"},
+    KeySpec{"aperture", "string, default \"point\": \"point\" | \"rectangle\" | \"disc\" (emitting face in the lamp's y-z plane)"},
+    KeySpec{"aperture_size_m", "rectangle: [width, height], m, each in (0, 2]; disc: number, the diameter, m, (0, 2]; "
+                               "required with rectangle and disc, not with point"},
+    KeySpec{"aperture_samples", "integer, points per axis, default 3, [1, 8]; not with point"},
 };
+
+/// aperture_samples: 8 per axis is 64 point lamps for one lamp, far past the point where the
+/// aperture rule's error drops below the airlight method's own (3 suffices: docs/scene.md).
+constexpr std::int64_t kMaxConfigApertureSamples = 8;
+/// aperture_size_m: a lamp's face; a street-lamp luminaire is under 1 m across.
+constexpr Range kApertureSize{0.0, 2.0, true, false};
 
 constexpr double kDefaultAlbedo = 1.0;
 constexpr std::string_view kDefaultPhase = "henyey-greenstein";
@@ -415,6 +425,45 @@ Medium parseFog(const Section& s, std::span<const KeySpec> extraKeys) {
   return m;
 }
 
+namespace {
+
+/// The keys aperture, aperture_size_m and aperture_samples of a lamp table (docs/scene.md).
+Aperture parseAperture(const Section& s) {
+  constexpr std::array<std::string_view, 3> kShapes{"point", "rectangle", "disc"};
+  const std::string shape = s.choice("aperture", kShapes, "point");
+  Aperture a;
+  if (shape == "point") {
+    const std::string why = "only allowed with aperture = \"rectangle\" or \"disc\", found " +
+                            std::string(s.find("aperture") ? "aperture = \"point\"" : "no aperture (a point lamp)");
+    s.forbid("aperture_size_m", why);
+    s.forbid("aperture_samples", why);
+    return a;
+  }
+  const std::string size = "aperture_size_m";
+  const toml::node* n = s.find(size);
+  const std::string within = "in (0, " + formatNumber(kApertureSize.hi) + "] m";
+  if (shape == "rectangle") {
+    a.shape = ApertureShape::Rectangle;
+    const std::string expected = "[width, height], two numbers " + within + " for aperture = \"rectangle\"";
+    if (!n) s.missing(size, expected);
+    const auto* arr = n->as_array();
+    if (!arr || arr->size() != 2) s.failAt(*n, size, "expected " + expected + ", found " + describeNode(*n));
+    a.width_m = s.numberOf(*arr->get(0), size + "[0]", kApertureSize);
+    a.height_m = s.numberOf(*arr->get(1), size + "[1]", kApertureSize);
+  } else {
+    a.shape = ApertureShape::Disc;
+    const std::string expected = "the diameter, a number " + within + " for aperture = \"disc\"";
+    if (!n) s.missing(size, expected);
+    if (!n->is_number() || !kApertureSize.contains(n->value_or(0.0)))
+      s.failAt(*n, size, "expected " + expected + ", found " + describeNode(*n));
+    a.width_m = n->value_or(0.0);
+  }
+  a.samples = static_cast<int>(s.integer("aperture_samples", 1, kMaxConfigApertureSamples, kDefaultApertureSamples));
+  return a;
+}
+
+}  // namespace
+
 SceneLamp parseLamp(const Section& s, std::size_t ordinal, const std::string& baseDir, ProfileCache& cache,
                     std::span<const KeySpec> extraKeys) {
   s.checkKeys(kLampKeys, extraKeys);
@@ -469,6 +518,7 @@ SceneLamp parseLamp(const Section& s, std::size_t ordinal, const std::string& ba
   }
   if (!p) s.failAt(profileNode, "profile", p.error().message);
   out.lamp.profile = std::move(p).value();
+  out.aperture = parseAperture(s);
   return out;
 }
 

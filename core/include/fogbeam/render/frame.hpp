@@ -1,8 +1,12 @@
 // fogbeam — compositing a frame from its surface and airlight layers, and display mapping.
 //
-//   composite    = L_s + A_m                    (L_s already holds the ambient in-scatter)
+//   composite    = L_s + A_m + G + V          (L_s already holds the ambient in-scatter)
 //   transmittance T = e^{−K_t d}                (0 for sky)
-//   overlay      = (A_m + I_a (1 − T), T)       so a host image generator does host · T + A
+//   overlay      = (A_m + G + V + I_a (1 − T), T)  so a host image generator does host · T + A
+//
+// G: the glow of multiple scattering around lamps, V: the driver's veiling luminance (disability
+// glare), both optional (render/lamp_effects.hpp; empty layers when off). Both are light added in
+// front of the surfaces, so they go with the in-scattered light into the overlay.
 //
 // All layers are linear cd/m² (white lamps give R = G = B = luminance), rows top to bottom.
 // Thread-safety: pure functions on caller-owned buffers.
@@ -24,10 +28,19 @@ struct FrameLayers {
   std::vector<float> overlay;        ///< 3 per pixel: A_m + I_a (1 − T)
   std::vector<float> transmittance;  ///< 1 per pixel
   std::vector<float> distance;       ///< 1 per pixel, metres, +inf for sky
+  std::vector<float> glow;           ///< 3 per pixel: G, empty when glow is off
+  std::vector<float> glare;          ///< 3 per pixel: V, empty when glare is off
+};
+
+/// The optional layers of LampEffects::evaluate (3 floats per pixel each; null or empty: off).
+struct EffectLayers {
+  const std::vector<float>* glow = nullptr;
+  const std::vector<float>* glare = nullptr;
 };
 
 /// Fills every layer (reusing the buffers' capacity).
-void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const AirlightImage& airlight, FrameLayers& out);
+void compositeFrame(const Medium& fog, const SurfaceBuffers& surface, const AirlightImage& airlight, FrameLayers& out,
+                    const EffectLayers& effects = {});
 
 /// Display mapping of linear luminance: x = L · 2^exposureEv / (1 cd/m²), Reinhard x/(1 + x)
 /// per channel, then the sRGB transfer curve, 8 bits. At EV 0, 1 cd/m² shows as mid-grey

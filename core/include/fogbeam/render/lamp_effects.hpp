@@ -2,24 +2,40 @@
 // lamps in view. Formulas and their sources: fogbeam/physics/glow.hpp; design and measurements:
 // docs/airlight.md, "Beyond single scattering".
 //
-//  * Glow: per visible lamp, the multiply-scattered radiance around its image, a function of the
-//    angle θ from it: the Narasimhan–Nayar APSF for the lamp's optical distance T = K_t R and the
-//    fog's mean cosine q, minus the single scattering of the same isotropic source (which the
-//    airlight layer already holds), times the albedo, faded in from T = 1.1 to `fade_in` (the
-//    series' lower limit: no pop as a car comes closer). The lamp enters with its intensity
-//    towards the eye. A lamp hidden behind a surface (distance buffer at its image nearer than
-//    it) has no glow; pixels whose surface is nearer than the lamp get less of it (the glow
-//    builds up near the lamp): weight clamp((d − R/2) / (R/2), 0, 1).
+//  * Glow: per visible lamp, the multiply-scattered radiance around its image as a function of
+//    the angle θ from it (glowCurve below):
+//        glow(θ) = λ · max(0, A(T, cos θ) − S₁(θ)),
+//    A the Narasimhan–Nayar APSF (all orders, albedo 1) for the lamp's optical distance
+//    T = K_t R and the fog's mean cosine q, S₁ the exact single scattering of the same source
+//    along the sky ray at θ (the F table, albedo 1), λ fixed by energy. No double counting:
+//    the airlight layer holds the single scattering exactly, the glow holds only what the other
+//    orders add, and λ makes the two together carry the scattered power an isotropic source
+//    sends through the sphere of radius R: with albedo 1, R² Φ[S₁ + glow] = I (1 − e^{−T}),
+//    Φ[L] = 2π ∫₀^π L cos θ sin θ dθ (the direct beam carries the rest, I e^{−T}); with albedo
+//    Ω < 1 the multiple part is scaled by Ω² (its lowest order). Where A < S₁ (close to the
+//    lamp's image, where the truncated series is smooth but single scattering peaks as 1/θ)
+//    the glow is 0. λ is reported: it measures how far the APSF's own normalisation is from
+//    energy conservation at that T (≈ 1 for T ≳ 4).
+//    The source intensity is the lamp's mean intensity over a cone about the direction of the
+//    eye of half-angle ψ, cos ψ = max(q^T, cos 60°) (the mean cosine of a photon's direction
+//    after T scatterings: multiply-scattered light reaching the eye left the lamp within about
+//    ψ of the eye's direction). For an isotropic lamp it is its intensity; for an oncoming
+//    low beam it takes in the beam below the cut-off, as its glow in fog does.
+//    The glow fades in linearly from T = 1.1 (the series' limit) to GlowOptions::fade_in; a
+//    lamp hidden behind a surface has none, and pixels whose surface is nearer than the lamp
+//    get less (the glow builds up along the last half of the way): weight
+//    clamp((d − R/2) / (R/2), 0, 1).
 //  * Glare: per lamp in front of the eye and not hidden, the veiling luminance of the eye's
 //    stray light (CIE 146:2002) for each pixel taken as the line of sight:
 //    L_v = Σ E_i · f(θ_i), E_i the illuminance at the eye from lamp i's direct (attenuated)
-//    light; added to the displayed image as disability glare is seen. The report gives its
-//    value at the image centre and each lamp's E.
+//    light I e^{−T} / R²; added to the displayed image as disability glare is seen. The report
+//    gives its value at the image centre and each lamp's E.
 //
 // Both layers are linear cd/m² per channel (lamp colour), 3 floats per pixel, row 0 at the top.
-// Thread-safety: one evaluate() at a time per LampEffects.
+// Thread-safety: one evaluate() at a time per LampEffects; glowCurve is reentrant.
 #pragma once
 
+#include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
@@ -31,17 +47,6 @@
 
 namespace fogbeam {
 
-struct GlowOptions {
-  bool enabled = false;
-  double fade_in = 2.0;  ///< optical distance from which the glow counts fully (linear from 1.1)
-};
-
-struct GlareOptions {
-  bool enabled = false;
-  double age_years = 40.0;    ///< observer's age A (CIE 146:2002)
-  double pigmentation = 0.5;  ///< eye pigmentation p: 0 very dark … 1 light blue eyes
-};
-
 struct LampEffectsReport {
   struct Lamp {
     std::string name;
@@ -50,7 +55,10 @@ struct LampEffectsReport {
     double optical_distance = 0.0;   ///< K_t R
     double intensity_cd = 0.0;       ///< towards the eye
     double eye_illuminance_lx = 0.0; ///< direct light at the eye, I e^{−K_t R} / R²
+    double glow_source_cd = 0.0;     ///< the glow's source: mean intensity over the cone about the eye
     double glow_peak_cd_m2 = 0.0;    ///< largest glow radiance around its image
+    double glow_scale = 0.0;         ///< λ (energy match), 0 without glow
+    double glow_share = 0.0;         ///< multiple / (single + multiple) scattered flux at the eye
     int apsf_terms = 0;              ///< Legendre terms summed (0: no glow)
   };
   std::vector<Lamp> lamps;
@@ -59,13 +67,35 @@ struct LampEffectsReport {
   double glow_seconds = 0.0, glare_seconds = 0.0;
 };
 
+/// The glow of an isotropic source of 1 cd at distance R in `fog` (header comment), on the
+/// angles θ_i = 2 asin((i / (nodes − 1))²), i < nodes (dense near the lamp, up to π), radians.
+/// Radiances in cd/m² per cd of source intensity, albedo included (glow) or 1 (single, apsf).
+struct GlowCurve {
+  std::vector<double> theta;   ///< rad
+  std::vector<double> glow;    ///< λ · max(0, A − S₁) × Ω² (0 where A ≤ S₁)
+  std::vector<double> single;  ///< S₁: exact single scattering, albedo 1 (+inf at θ = 0)
+  std::vector<double> apsf;    ///< A: N&N series, albedo 1
+  double scale = 0.0;          ///< λ
+  double single_flux = 0.0;    ///< R² Φ[Ω S₁] (cd): single-scattered power share through the sphere
+  double multiple_flux = 0.0;  ///< R² Φ[glow] (cd)
+  int terms = 0;               ///< Legendre terms of A
+};
+/// Errors when K_t R < Apsf::minOpticalDistance() or the series does not converge.
+[[nodiscard]] Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, double distance_m,
+                                          int nodes = 512);
+/// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
+/// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
+[[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);
+
 class LampEffects {
  public:
   /// `threads`: the pool the per-pixel passes run on (shared with the airlight evaluator).
   [[nodiscard]] static Result<LampEffects> build(const Scene& scene, const GlowOptions& glow, const GlareOptions& glare,
                                                  std::shared_ptr<ThreadPool> pool);
   /// Fills `glow` and `glare` (3 floats per pixel; cleared when the effect is off) for the
-  /// scene's camera, lamps and fog, with the surface pass's distances.
+  /// scene's camera, lamps and fog, with the surface pass's distances. The scene may change
+  /// from frame to frame (camera, fog, lamps moving, lamps added: they start switched on);
+  /// setLampEnabled indices refer to the scene's lamp order.
   void evaluate(const Scene& scene, const SurfaceBuffers& surface, std::vector<float>& glow, std::vector<float>& glare,
                 LampEffectsReport& report);
   /// Switches lamp `index` (scene order) on or off for the following frames.

@@ -9,8 +9,10 @@
 #pragma once
 
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/aperture.hpp>
 #include <fogbeam/physics/math.hpp>
 #include <fogbeam/physics/medium.hpp>
+#include <fogbeam/scene/effects.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <optional>
@@ -98,15 +100,25 @@ struct SceneLamp {
   std::string name;
   Lamp lamp;
   LampMount mount = LampMount::World;  ///< scene key `mount` = "world" | "vehicle"
+  /// The lamp's emitting face as written (keys `aperture`, `aperture_size_m`, `aperture_samples`;
+  /// physics/aperture.hpp). Renderers treat every SceneLamp as a point lamp and ignore this:
+  /// lamps with a face reach them expanded into point lamps (expandSceneLamp), which parseScene
+  /// does for Scene::lamps and the service's frame renderer for rig lamps once they are placed.
+  Aperture aperture{};
 };
+
+/// The point lamps that stand for `lamp` (expandAperture): "name [k/N]", k from 1, each with a
+/// Point aperture, the same mount and profile; {lamp} itself when its aperture is a point.
+[[nodiscard]] std::vector<SceneLamp> expandSceneLamp(const SceneLamp& lamp);
 
 struct Scene {
   std::string source;  ///< file path, for messages
   Medium fog;
   Camera camera;
-  std::vector<SceneLamp> lamps;
+  std::vector<SceneLamp> lamps;  ///< point lamps: parseScene expands lamps with an aperture
   std::vector<Plane> planes;
   std::optional<std::string> gltf_path;  ///< absolute or relative to the working directory
+  SceneEffects effects;                  ///< [glow], [glare], [render]: all off / CPU by default
 };
 
 /// Parses a scene. `baseDir` resolves relative profile and glTF paths. Errors name the file,

@@ -179,6 +179,16 @@ class ProfileCache {
 [[nodiscard]] SceneLamp parseLamp(const Section& s, std::size_t ordinal, const std::string& baseDir,
                                   ProfileCache& cache, std::span<const KeySpec> extraKeys = {});
 
+/// The [glow], [glare] and [render] tables (fogbeam/scene/effects.hpp; docs/scene.md), shared by
+/// scene files and service configs. parseEffects reads whichever of the three `top` holds.
+[[nodiscard]] std::span<const KeySpec> glowKeys();
+[[nodiscard]] std::span<const KeySpec> glareKeys();
+[[nodiscard]] std::span<const KeySpec> renderKeys();
+[[nodiscard]] GlowOptions parseGlow(const Section& s);
+[[nodiscard]] GlareOptions parseGlare(const Section& s);
+[[nodiscard]] RenderSettings parseRenderSettings(const Section& s);
+[[nodiscard]] SceneEffects parseEffects(const Section& top);
+
 /// Runs `parse` on the TOML text and turns every failure (TOML syntax, ConfigError, allocation)
 /// into an Error naming `name`: the entry point of each file format.
 template <class T, class F>

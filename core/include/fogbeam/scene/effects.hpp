@@ -1,0 +1,52 @@
+// fogbeam — the switchable additions beyond the paper's single scattering (issue 7) as a scene
+// or service configuration holds them: glow (multiple scattering around lamps), disability glare,
+// and where the airlight is computed (CPU evaluator or the GPU surface pass).
+//
+// Scene files: tables [glow], [glare], [render] (docs/scene.md); service configs: the same
+// tables (docs/service.md). The physics behind glow and glare: fogbeam/physics/glow.hpp; the
+// per-frame layers: fogbeam/render/lamp_effects.hpp.
+//
+// Thread-safety: plain values.
+#pragma once
+
+#include <string_view>
+
+namespace fogbeam {
+
+/// Glow around lamps seen through fog (Narasimhan–Nayar APSF, energy-matched to the
+/// single-scattering layer; lamp_effects.hpp).
+struct GlowOptions {
+  bool enabled = false;
+  /// Optical distance K_t R from which a lamp's glow counts fully; it fades in linearly from
+  /// Apsf::minOpticalDistance() (1.1), where the series stops converging, so that an
+  /// approaching car's glow does not pop. ≥ 1.1.
+  double fade_in = 2.0;
+};
+
+/// The driver's disability glare: CIE 146:2002 veiling luminance of the lamps in view.
+struct GlareOptions {
+  bool enabled = false;
+  double age_years = 40.0;    ///< observer's age A, years, [0, 120]
+  double pigmentation = 0.5;  ///< eye pigmentation p, [0, 1]: 0 very dark … 1 light blue eyes
+};
+
+/// Where the airlight layer is computed.
+enum class AirlightDevice {
+  Cpu,  ///< AirlightImageEvaluator (tables, SIMD, subsampling): the default
+  Gpu,  ///< the accurate method as GLSL in the surface pass (GlSurfacePass::setAirlight)
+};
+[[nodiscard]] std::string_view toString(AirlightDevice d);
+
+struct RenderSettings {
+  AirlightDevice airlight = AirlightDevice::Cpu;
+  int gpu_pieces = 64;  ///< GPU path: quadratic pieces per ray for measured profiles, [4, 1024]
+};
+
+/// A scene's or service's additions; all off (and the CPU path) by default.
+struct SceneEffects {
+  GlowOptions glow;
+  GlareOptions glare;
+  RenderSettings render;
+};
+
+}  // namespace fogbeam

@@ -1,0 +1,350 @@
+// Glow and glare layers (render/lamp_effects.hpp, issue 7): the glow curve against the reference
+// single scattering and its energy match, the screen-space layers against their formulas,
+// hidden and switched-off lamps, and compositing.
+#include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/glow.hpp>
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace fogbeam {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+Medium hgFog(double kt, double albedo = 1.0, double g = 0.85) {
+  Medium m;
+  m.extinction_per_m = kt;
+  m.albedo = albedo;
+  m.phase = makeHenyeyGreenstein(g).value();
+  return m;
+}
+
+Lamp isotropicAt(const Vec3& p, double cd) {
+  Lamp l;
+  l.position_m = p;
+  l.profile = makeProfile(IsotropicProfile{cd}).value();
+  return l;
+}
+
+/// Linear interpolation of a curve tabulated on ascending θ.
+double curveAt(const std::vector<double>& theta, const std::vector<double>& v, double t) {
+  const auto it = std::upper_bound(theta.begin(), theta.end(), t);
+  if (it == theta.begin()) return v.front();
+  if (it == theta.end()) return v.back();
+  const auto i = static_cast<std::size_t>(it - theta.begin());
+  const double u = (t - theta[i - 1]) / (theta[i] - theta[i - 1]);
+  return v[i - 1] + u * (v[i] - v[i - 1]);
+}
+
+// ---- The glow curve ------------------------------------------------------------------------
+
+TEST(GlowCurve, SingleScatteringIsTheReferenceMethodsAirlight) {
+  // S₁(θ) is the sky ray's airlight at θ from a 1 cd isotropic source R away (albedo 1):
+  // computed from the F table; checked against the adaptive quadrature of the Reference method.
+  for (double R : {60.0, 150.0}) {
+    const Medium fog = hgFog(0.03);
+    const auto table = kernels::IsoTable::get(fog.phase);
+    const GlowCurve c = glowCurve(*table, fog, R).value();
+    const Lamp lamp = isotropicAt(Vec3(R, 0.0, 0.0), 1.0);
+    const AirlightEvaluator ref = AirlightEvaluator::build(lamp, fog, AirlightMethod::Reference).value();
+    for (double deg : {1.0, 5.0, 20.0, 60.0, 90.0, 120.0, 150.0}) {
+      const auto it = std::lower_bound(c.theta.begin(), c.theta.end(), radians(deg));
+      const auto i = static_cast<std::size_t>(it - c.theta.begin());
+      const double th = c.theta[i];
+      const double expected = ref.evaluate(Ray{Vec3(0.0), Vec3(std::cos(th), std::sin(th), 0.0), kInf});
+      EXPECT_NEAR(c.single[i], expected, 1e-3 * expected) << "R = " << R << " m, theta = " << th * 180 / kPi << " deg";
+    }
+  }
+}
+
+TEST(GlowCurve, EnergyMatchAndItsScale) {
+  // With albedo 1 the scattered light through the sphere of radius R is I (1 − e^{−T}); the glow
+  // carries what single scattering does not. λ (the APSF's scale needed for that) tends to 1 as
+  // the diffusion limit of the series is approached (its normalisation, Narasimhan & Nayar).
+  const Medium fog = hgFog(0.03);
+  const auto table = kernels::IsoTable::get(fog.phase);
+  double previous = 0.0;
+  for (double T : {1.5, 2.0, 3.0, 5.0, 10.0}) {
+    const double R = T / fog.extinction_per_m;
+    const GlowCurve c = glowCurve(*table, fog, R).value();
+    std::printf("T = %4.1f: lambda %.3f, single %.4f, multiple %.4f (of 1 - e^-T = %.4f), %d terms\n", T, c.scale,
+                c.single_flux, c.multiple_flux, 1.0 - std::exp(-T), c.terms);
+    EXPECT_NEAR(c.single_flux + c.multiple_flux, 1.0 - std::exp(-T), 1e-9);
+    EXPECT_GT(c.multiple_flux, 0.0);
+    EXPECT_GE(c.scale, previous) << "lambda should grow towards 1 with T";
+    previous = c.scale;
+    bool any = false;
+    for (std::size_t i = 0; i < c.theta.size(); ++i) {
+      EXPECT_GE(c.glow[i], 0.0);
+      if (c.apsf[i] <= c.single[i]) {
+        EXPECT_EQ(c.glow[i], 0.0) << "no glow where single scattering is already larger";
+      }
+      any = any || c.glow[i] > 0.0;
+    }
+    EXPECT_TRUE(any);
+    // The energy match is resolved by the grid: 4× the nodes changes λ by < 1 %.
+    const GlowCurve fine = glowCurve(*table, fog, R, 2048).value();
+    EXPECT_NEAR(fine.scale, c.scale, 0.01 * c.scale) << "T = " << T;
+  }
+  EXPECT_NEAR(previous, 1.0, 0.05) << "lambda at T = 10";
+}
+
+TEST(GlowCurve, AlbedoScalesSingleOnceAndMultipleTwice) {
+  const auto table = kernels::IsoTable::get(hgFog(0.03).phase);
+  const GlowCurve white = glowCurve(*table, hgFog(0.03, 1.0), 100.0).value();
+  const GlowCurve grey = glowCurve(*table, hgFog(0.03, 0.8), 100.0).value();
+  EXPECT_NEAR(grey.single_flux, 0.8 * white.single_flux, 1e-12);
+  EXPECT_NEAR(grey.multiple_flux, 0.64 * white.multiple_flux, 1e-12);
+  for (std::size_t i = 0; i < white.glow.size(); i += 37) EXPECT_NEAR(grey.glow[i], 0.64 * white.glow[i], 1e-12);
+}
+
+TEST(GlowCurve, RefusesOpticalDistancesBelowTheSeriesLimit) {
+  const Medium fog = hgFog(0.03);
+  const auto table = kernels::IsoTable::get(fog.phase);
+  EXPECT_FALSE(glowCurve(*table, fog, 1.0 / 0.03));  // T = 1 < 1.1
+}
+
+// ---- The layers --------------------------------------------------------------------------------
+
+struct FxScene {
+  Scene scene;
+  SurfaceBuffers surface;
+};
+
+/// 95 × 55 pixels (odd: the centre pixel's ray is the view axis), 50° wide, fog K_t = 0.03 /m,
+/// one isotropic 5000 cd lamp 80 m ahead, 10 m left and 5 m up (8.2° off axis, T ≈ 2.43), sky.
+FxScene setup(Vec3 color = Vec3(1.0)) {
+  FxScene s;
+  s.scene.fog = hgFog(0.03);
+  s.scene.camera.position_m = Vec3(0.0, 0.0, 1.2);
+  s.scene.camera.fov_x = radians(50.0);
+  s.scene.camera.width = 95;
+  s.scene.camera.height = 55;
+  SceneLamp l;
+  l.name = "street";
+  l.lamp = isotropicAt(Vec3(80.0, 10.0, 6.2), 5000.0);
+  l.lamp.color = color;
+  s.scene.lamps.push_back(l);
+  s.surface.resize(95, 55);
+  std::fill(s.surface.rgb.begin(), s.surface.rgb.end(), 0.0f);
+  std::fill(s.surface.distance.begin(), s.surface.distance.end(), std::numeric_limits<float>::infinity());
+  return s;
+}
+
+GlowOptions glowOn() {
+  GlowOptions g;
+  g.enabled = true;
+  return g;
+}
+GlareOptions glareOn() {
+  GlareOptions g;
+  g.enabled = true;
+  return g;
+}
+
+double angleToLamp(const Scene& s, int i, int j) {
+  const Vec3 w = s.camera.rayDirection(i + 0.5, j + 0.5);
+  const Vec3 e = glm::normalize(s.lamps[0].lamp.position_m - s.camera.position_m);
+  return std::acos(std::clamp(glm::dot(w, e), -1.0, 1.0));
+}
+
+std::size_t px(int i, int j) { return 3 * (static_cast<std::size_t>(j) * 95 + static_cast<std::size_t>(i)); }
+
+TEST(LampEffectsLayers, GlowIsTheCurveAroundTheLampsImage) {
+  FxScene s = setup();
+  auto pool = std::make_shared<ThreadPool>(2);
+  LampEffects fx = LampEffects::build(s.scene, glowOn(), GlareOptions{}, pool).value();
+  std::vector<float> glow, glare;
+  LampEffectsReport rep;
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  ASSERT_EQ(glow.size(), 3u * 95 * 55);
+  EXPECT_TRUE(glare.empty());
+  ASSERT_EQ(rep.lamps.size(), 1u);
+  const double R = glm::length(s.scene.lamps[0].lamp.position_m - s.scene.camera.position_m);
+  EXPECT_TRUE(rep.lamps[0].visible);
+  EXPECT_NEAR(rep.lamps[0].optical_distance, 0.03 * R, 1e-12);
+  EXPECT_NEAR(rep.lamps[0].glow_source_cd, 5000.0, 1e-9);  // isotropic: the cone's mean is I
+  // Independently: the curve for this R, × the source intensity (T ≥ fade_in: no fade).
+  const GlowCurve c = glowCurve(*kernels::IsoTable::get(s.scene.fog.phase), s.scene.fog, R).value();
+  EXPECT_NEAR(rep.lamps[0].glow_scale, c.scale, 1e-12);
+  double peak = 0.0;
+  for (float v : glow) peak = std::max(peak, static_cast<double>(v));
+  ASSERT_GT(peak, 0.0);
+  int checked = 0;
+  for (int j = 0; j < 55; j += 3)
+    for (int i = 0; i < 95; i += 3) {
+      const double expected = 5000.0 * curveAt(c.theta, c.glow, angleToLamp(s.scene, i, j));
+      const double got = glow[px(i, j)];
+      if (expected < 0.01 * peak) {
+        EXPECT_LT(got, 0.02 * peak);
+        continue;
+      }
+      EXPECT_NEAR(got, expected, 0.02 * expected) << "pixel " << i << ", " << j;
+      EXPECT_EQ(glow[px(i, j)], glow[px(i, j) + 1]);  // white lamp
+      ++checked;
+    }
+  EXPECT_GT(checked, 50);
+  std::printf("glow: lambda %.3f, peak %.3g cd/m2, share of multiple scattering %.2f, %.2f ms\n", c.scale, peak,
+              rep.lamps[0].glow_share, 1e3 * rep.glow_seconds);
+}
+
+TEST(LampEffectsLayers, NearerSurfacesDimTheGlowAndAHiddenLampHasNone) {
+  FxScene s = setup();
+  auto pool = std::make_shared<ThreadPool>(2);
+  LampEffects fx = LampEffects::build(s.scene, glowOn(), glareOn(), pool).value();
+  std::vector<float> open, glare;
+  LampEffectsReport rep;
+  fx.evaluate(s.scene, s.surface, open, glare, rep);
+  const double R = rep.lamps[0].distance_m;
+  // The lower half behind a surface at 0.75 R: its glow builds up over the last half of the way,
+  // weight (d − R/2)/(R/2) = 0.5.
+  for (int j = 40; j < 55; ++j)
+    for (int i = 0; i < 95; ++i) s.surface.distance[static_cast<std::size_t>(j) * 95 + static_cast<std::size_t>(i)] = static_cast<float>(0.75 * R);
+  std::vector<float> half;
+  fx.evaluate(s.scene, s.surface, half, glare, rep);
+  EXPECT_TRUE(rep.lamps[0].visible);
+  for (int j = 0; j < 55; j += 5)
+    for (int i = 0; i < 95; i += 5) {
+      const double w = j >= 40 ? 0.5 : 1.0;
+      const double o = open[px(i, j)];
+      EXPECT_NEAR(half[px(i, j)], w * o, 1e-5 * o + 1e-12);
+    }
+  // A surface in front of the lamp's image hides it: no glow, no glare, no illuminance.
+  std::fill(s.surface.distance.begin(), s.surface.distance.end(), static_cast<float>(0.9 * R));
+  std::vector<float> hidden;
+  fx.evaluate(s.scene, s.surface, hidden, glare, rep);
+  EXPECT_FALSE(rep.lamps[0].visible);
+  EXPECT_EQ(rep.eye_illuminance_lx, 0.0);
+  EXPECT_EQ(rep.veiling_luminance_cd_m2, 0.0);
+  EXPECT_EQ(*std::max_element(hidden.begin(), hidden.end()), 0.0f);
+  EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
+}
+
+TEST(LampEffectsLayers, GlareIsTheCieVeilingLuminanceOfTheLampsIlluminance) {
+  FxScene s = setup(Vec3(1.0, 0.5, 0.25));
+  auto pool = std::make_shared<ThreadPool>(2);
+  GlareOptions opt = glareOn();
+  opt.age_years = 60.0;
+  opt.pigmentation = 0.8;
+  LampEffects fx = LampEffects::build(s.scene, GlowOptions{}, opt, pool).value();
+  std::vector<float> glow, glare;
+  LampEffectsReport rep;
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  EXPECT_TRUE(glow.empty());
+  ASSERT_EQ(glare.size(), 3u * 95 * 55);
+  const double R = rep.lamps[0].distance_m;
+  const double E = 5000.0 * std::exp(-0.03 * R) / (R * R);
+  EXPECT_NEAR(rep.lamps[0].eye_illuminance_lx, E, 1e-12 * E);
+  EXPECT_NEAR(rep.eye_illuminance_lx, E, 1e-12 * E);
+  // At the image centre (the view axis): θ = the lamp's angle off axis.
+  const double axisDeg = angleToLamp(s.scene, 47, 27) * 180.0 / kPi;
+  EXPECT_NEAR(axisDeg, std::atan2(std::hypot(10.0, 5.0), 80.0) * 180.0 / kPi, 1e-9);
+  EXPECT_NEAR(rep.veiling_luminance_cd_m2, E * veilingLuminancePerLux(axisDeg, 60.0, 0.8), 1e-9);
+  int checked = 0;
+  for (int j = 0; j < 55; j += 2)
+    for (int i = 0; i < 95; i += 2) {
+      const double deg = angleToLamp(s.scene, i, j) * 180.0 / kPi;
+      if (deg < 1.0) continue;  // the formula's 1/θ³ near the lamp: the table's nodes are sparse
+      const double expected = E * veilingLuminancePerLux(deg, 60.0, 0.8);
+      EXPECT_NEAR(glare[px(i, j)], expected, 0.01 * expected) << "pixel " << i << ", " << j << ", " << deg << " deg";
+      const double r = glare[px(i, j)];
+      EXPECT_NEAR(glare[px(i, j) + 1], 0.5 * r, 1e-6 * r);
+      EXPECT_NEAR(glare[px(i, j) + 2], 0.25 * r, 1e-6 * r);
+      ++checked;
+    }
+  EXPECT_GT(checked, 1000);
+  std::printf("glare: E = %.4g lx, veiling luminance at the centre %.4g cd/m2 (%.1f deg), %.2f ms\n", E,
+              rep.veiling_luminance_cd_m2, axisDeg, 1e3 * rep.glare_seconds);
+}
+
+TEST(LampEffectsLayers, SwitchedOffLampsAndLampsBehindTheEyeGiveNothing) {
+  FxScene s = setup();
+  auto pool = std::make_shared<ThreadPool>(2);
+  LampEffects fx = LampEffects::build(s.scene, glowOn(), glareOn(), pool).value();
+  std::vector<float> glow, glare;
+  LampEffectsReport rep;
+  fx.setLampEnabled(0, false);
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  EXPECT_TRUE(rep.lamps.empty());
+  EXPECT_EQ(*std::max_element(glow.begin(), glow.end()), 0.0f);
+  EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
+  fx.setLampEnabled(0, true);
+  s.scene.lamps[0].lamp.position_m = Vec3(-80.0, 10.0, 6.2);  // behind the driver
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  ASSERT_EQ(rep.lamps.size(), 1u);
+  EXPECT_FALSE(rep.lamps[0].visible);
+  EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
+  // A lamp added after build() (traffic arriving) is evaluated, switched on.
+  s.scene.lamps[0].lamp.position_m = Vec3(80.0, 10.0, 6.2);
+  SceneLamp second = s.scene.lamps[0];
+  second.name = "second";
+  second.lamp.position_m = Vec3(80.0, -10.0, 6.2);
+  s.scene.lamps.push_back(second);
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  ASSERT_EQ(rep.lamps.size(), 2u);
+  EXPECT_TRUE(rep.lamps[1].visible);
+  EXPECT_NEAR(rep.eye_illuminance_lx, 2.0 * rep.lamps[0].eye_illuminance_lx, 1e-12);
+}
+
+TEST(LampEffectsLayers, BadOptionsAreRefused) {
+  FxScene s = setup();
+  auto pool = std::make_shared<ThreadPool>(1);
+  GlowOptions g = glowOn();
+  g.fade_in = 1.0;
+  EXPECT_FALSE(LampEffects::build(s.scene, g, GlareOptions{}, pool));
+  GlareOptions a = glareOn();
+  a.age_years = -1.0;
+  EXPECT_FALSE(LampEffects::build(s.scene, GlowOptions{}, a, pool));
+  a.age_years = 40.0;
+  a.pigmentation = 2.0;
+  EXPECT_FALSE(LampEffects::build(s.scene, GlowOptions{}, a, pool));
+}
+
+TEST(Compositing, GlowAndGlareAreAddedInFrontOfTheSurfaces) {
+  const int w = 4, h = 3;
+  const std::size_t n = 12;
+  Medium fog = hgFog(0.05);
+  fog.ambient_cd_m2 = 0.3;
+  SurfaceBuffers surf;
+  surf.resize(w, h);
+  AirlightImage air;
+  air.width = w;
+  air.height = h;
+  air.rgb.resize(3 * n);
+  std::vector<float> glow(3 * n), glare(3 * n);
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    surf.rgb[k] = 0.1f * static_cast<float>(k);
+    air.rgb[k] = 2.0f + 0.01f * static_cast<float>(k);
+    glow[k] = 0.5f + 0.02f * static_cast<float>(k);
+    glare[k] = 0.25f;
+  }
+  for (std::size_t k = 0; k < n; ++k) surf.distance[k] = k % 2 ? 20.0f : std::numeric_limits<float>::infinity();
+  FrameLayers plain, with;
+  compositeFrame(fog, surf, air, plain);
+  compositeFrame(fog, surf, air, with, EffectLayers{&glow, &glare});
+  EXPECT_TRUE(plain.glow.empty());
+  EXPECT_EQ(with.glow, glow);
+  EXPECT_EQ(with.glare, glare);
+  EXPECT_EQ(with.transmittance, plain.transmittance);
+  for (std::size_t k = 0; k < 3 * n; ++k) {
+    EXPECT_NEAR(with.composite[k] - plain.composite[k], glow[k] + glare[k], 1e-5);
+    EXPECT_NEAR(with.overlay[k] - plain.overlay[k], glow[k] + glare[k], 1e-5);
+  }
+  // A layer of the wrong size is left out, not read out of bounds.
+  std::vector<float> shortLayer(5, 1.0f);
+  FrameLayers bad;
+  compositeFrame(fog, surf, air, bad, EffectLayers{&shortLayer, nullptr});
+  EXPECT_TRUE(bad.glow.empty());
+  EXPECT_EQ(bad.composite, plain.composite);
+}
+
+}  // namespace
+}  // namespace fogbeam
