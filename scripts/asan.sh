@@ -25,7 +25,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 # Tests that open a GL context: the gl label (every test of fogbeam_gl_tests, whatever its suite's
 # name) and, by name, the command-line tests that render with the GL surface pass.
-gl='^(Gl|TypesAndSymmetries/Gl|view_|cli_render_|cli_bench_)'
+gl='^(Gl|TypesAndSymmetries/Gl|view_|cli_render_|cli_bench_|cli_validate_)'
 only=()
 if [ $# -gt 0 ]; then only=(-L "$1"); fi
 start=$(date +%s)

@@ -16,6 +16,7 @@
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/render/raymarch.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
@@ -65,6 +66,10 @@ struct BenchOptions {
   double stageBudgetSeconds = 30.0;  // wall time allowed to each airlight stage per size
   int maxRayMarchSteps = 1 << 14;
   double viewTableStepDeg = FastPathOptions{}.view_table_step_deg;
+  // Issue 7's additions: glow and glare at every size; the GPU airlight path and near-field
+  // (aperture) lamps at one size each (llvmpipe runs the GPU path on the CPU: minutes at 720p).
+  std::string gpuSize = "160x90";
+  std::string apertureSize = "320x180";
 };
 
 // Figures of one stage over repeated frames, in milliseconds.
@@ -372,6 +377,49 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   }
   const double pipelineMs = surfaceUsedMs + subStats.median() + compStats.median();
 
+  // Glow and glare (issue 7) on the same frame: their layers' time, and their effect as the
+  // share of the composite's light they add (Σ over pixels, luminance) and the glare figures.
+  json effects;
+  {
+    GlowOptions glowOpt;
+    glowOpt.enabled = true;
+    GlareOptions glareOpt;
+    glareOpt.enabled = true;
+    auto fxPool = std::shared_ptr<ThreadPool>(&pool, [](ThreadPool*) {});  // borrowed: outlives fx
+    auto fx = LampEffects::build(scene, glowOpt, glareOpt, fxPool);
+    if (fx) {
+      StageStats glowStats, glareStats;
+      std::vector<float> glowLayer, glareLayer;
+      LampEffectsReport rep;
+      for (int f = 0; f < o.frames; ++f) {
+        fx->evaluate(scene, surface, glowLayer, glareLayer, rep);
+        glowStats.ms.push_back(1e3 * rep.glow_seconds);
+        glareStats.ms.push_back(1e3 * rep.glare_seconds);
+      }
+      double sumBase = 0.0, sumGlow = 0.0, sumGlare = 0.0;
+      for (std::size_t k = 0; k < nPixels; ++k) {
+        sumBase += luminance(&layers.composite[3 * k]);
+        sumGlow += luminance(&glowLayer[3 * k]);
+        sumGlare += luminance(&glareLayer[3 * k]);
+      }
+      int visible = 0, glowing = 0;
+      for (const auto& l : rep.lamps) {
+        visible += l.visible ? 1 : 0;
+        glowing += l.apsf_terms > 0 ? 1 : 0;
+      }
+      effects = {{"glow", glowStats.toJson()},
+                 {"glare", glareStats.toJson()},
+                 {"lamps_in_view", visible},
+                 {"lamps_with_glow", glowing},
+                 {"glow_light_share", sumBase > 0.0 ? sumGlow / sumBase : 0.0},
+                 {"glare_light_share", sumBase > 0.0 ? sumGlare / sumBase : 0.0},
+                 {"eye_illuminance_lx", rep.eye_illuminance_lx},
+                 {"veiling_luminance_centre_cd_m2", rep.veiling_luminance_cd_m2}};
+    } else {
+      effects = {{"error", fx.error().message}};
+    }
+  }
+
   json stages;
   stages["surface_cpu_planes"] = surfaceStats.toJson();
   stages["surface_gl"] = glSurface;
@@ -387,6 +435,7 @@ json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evalua
   stages["airlight_kernels_by_target"] = simd;
   stages["composite"] = compStats.toJson();
   r["stages"] = stages;
+  r["glow_glare"] = effects;
   r["pipeline_subsampled_ms"] = pipelineMs;
   r["pipeline_surface"] = surfaceUsed;
   r["fps_subsampled"] = pipelineMs > 0.0 ? 1e3 / pipelineMs : 0.0;
@@ -495,6 +544,21 @@ void printError(const char* name, const json& e) {
               e["p95"].get<double>(), e["max"].get<double>(), e["pixels"].get<int>());
 }
 
+void printEffects(const json& e) {
+  if (e.contains("error")) {
+    std::printf("  %-30s %s\n", "glow, glare", e["error"].get<std::string>().c_str());
+    return;
+  }
+  char note[200];
+  std::snprintf(note, sizeof note, "  %d of %d lamps in view glow; +%.1f %% of the frame's light",
+                e["lamps_with_glow"].get<int>(), e["lamps_in_view"].get<int>(), 100.0 * e["glow_light_share"].get<double>());
+  printStage("glow (N&N APSF, energy-matched)", e["glow"], note);
+  std::snprintf(note, sizeof note, "  E at the eye %.3g lx, L_v at the centre %.3g cd/m2; +%.1f %% of the light",
+                e["eye_illuminance_lx"].get<double>(), e["veiling_luminance_centre_cd_m2"].get<double>(),
+                100.0 * e["glare_light_share"].get<double>());
+  printStage("glare (CIE 146)", e["glare"], note);
+}
+
 void printSize(const json& r) {
   const int w = r["width"].get<int>(), h = r["height"].get<int>();
   const double n = r["pixels"].get<double>();
@@ -534,6 +598,7 @@ void printSize(const json& r) {
                 t["speedup"].get<double>());
   std::printf("\n");
   printStage("composite", s["composite"]);
+  printEffects(r["glow_glare"]);
   std::printf("  %-30s %9.2f ms  = %.1f frames/s (%s + airlight subsampled + composite)\n", "pipeline, subsampled",
               r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>(),
               r["pipeline_surface"].get<std::string>().c_str());
@@ -569,12 +634,200 @@ void printSize(const json& r) {
   }
 }
 
+/// The scene at another image size (an off-axis camera keeps its frustum).
+Scene resized(Scene scene, int width, int height) {
+  if (scene.camera.principal_px)
+    *scene.camera.principal_px *= Vec2(static_cast<double>(width) / scene.camera.width,
+                                       static_cast<double>(height) / scene.camera.height);
+  scene.camera.width = width;
+  scene.camera.height = height;
+  return scene;
+}
+
+std::vector<double> luminances(const std::vector<float>& rgb) {
+  std::vector<double> l(rgb.size() / 3);
+  for (std::size_t k = 0; k < l.size(); ++k) l[k] = luminance(&rgb[3 * k]);
+  return l;
+}
+
+double sumOf(const std::vector<double>& v) { return std::accumulate(v.begin(), v.end(), 0.0); }
+
+/// Accurate-method evaluator for `scene`, its first frame (view tables) and then steady frames
+/// (subsampled, then full): what a frame of this scene costs on the CPU.
+struct CpuFrames {
+  double firstMs = 0.0, tableMs = 0.0;
+  StageStats sub, full;
+  AirlightImage fullImage;
+};
+Result<CpuFrames> cpuFrames(const Scene& scene, const SurfaceBuffers& surface, unsigned threads, const BenchOptions& o) {
+  FastPathOptions fast;
+  fast.view_table_step_deg = o.viewTableStepDeg;
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, fast);
+  if (!ev) return ev.error();
+  CpuFrames c;
+  AirlightImage img;
+  auto t0 = Clock::now();
+  ev->evaluate(scene, surface, SubsamplingOptions{}, img);
+  c.firstMs = msSince(t0);
+  c.tableMs = 1e3 * img.table_seconds;
+  for (int f = 0; f < o.frames; ++f) {
+    t0 = Clock::now();
+    ev->evaluate(scene, surface, SubsamplingOptions{}, img);
+    c.sub.ms.push_back(msSince(t0));
+  }
+  for (int f = 0; f < o.frames; ++f) {
+    t0 = Clock::now();
+    ev->evaluate(scene, surface, SubsamplingOptions{.full = true}, c.fullImage);
+    c.full.ms.push_back(msSince(t0));
+  }
+  return c;
+}
+
+/// Issue 7's GPU airlight path against the CPU's accurate method on the same frame, and the
+/// cost and effect of near-field lamps (the scene's vehicle lamps given a 0.20 × 0.10 m face).
+json benchAdditions(const Scene& base, const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
+  json out;
+  int w = 0, h = 0;
+  // GPU airlight.
+  json gpu = {{"available", false}};
+  if (!gl) {
+    gpu["note"] = "GL: not available (no EGL)";
+  } else if (parseSize(o.gpuSize, w, h)) {
+    const Scene scene = resized(base, w, h);
+    SurfaceBuffers surface, surfaceGpu;
+    std::vector<float> air;
+    StageStats surfaceOnly, total, airGpu;
+    std::string failure;
+    for (int f = 0; f < o.frames && failure.empty(); ++f) {
+      const auto t0 = Clock::now();
+      if (Status st = gl->render(scene, surface); !st) failure = st.error().message;
+      surfaceOnly.ms.push_back(msSince(t0));
+    }
+    GpuAirlightOptions opt;
+    if (Status st = gl->setAirlight(opt); !st && failure.empty()) failure = st.error().message;
+    // One frame first: shader compilation and the G-moment tables' upload.
+    const auto tWarm = Clock::now();
+    if (failure.empty())
+      if (Status st = gl->render(scene, surfaceGpu, air); !st) failure = st.error().message;
+    const double warmMs = msSince(tWarm);
+    for (int f = 0; f < o.frames && failure.empty(); ++f) {
+      const auto t0 = Clock::now();
+      if (Status st = gl->render(scene, surfaceGpu, air); !st) failure = st.error().message;
+      total.ms.push_back(msSince(t0));
+      airGpu.ms.push_back(gl->stats().airlight_ms);
+    }
+    (void)gl->setAirlight(std::nullopt);
+    auto cpu = cpuFrames(scene, surface, threads, o);
+    if (!failure.empty()) {
+      gpu["note"] = "GPU airlight failed: " + failure;
+    } else if (!cpu) {
+      gpu["note"] = "CPU accurate failed: " + cpu.error().message;
+    } else {
+      const std::vector<double> lg = luminances(air), lc = luminances(cpu->fullImage.rgb);
+      const double sc = sumOf(lc);
+      gpu = {{"available", true},
+             {"note", gl->description()},
+             {"width", w},
+             {"height", h},
+             {"pieces", opt.pieces},
+             {"first_frame_ms", warmMs},
+             {"surface_only", surfaceOnly.toJson()},
+             {"surface_and_airlight", total.toJson()},
+             {"airlight_gpu_time", airGpu.toJson()},
+             {"cpu_accurate_full", cpu->full.toJson()},
+             {"cpu_accurate_subsampled", cpu->sub.toJson()},
+             {"vs_cpu_full", relativeErrors(lg, lc).toJson()},
+             {"sum_ratio", sc > 0.0 ? sumOf(lg) / sc : 0.0}};
+    }
+  }
+  out["gpu_airlight"] = gpu;
+
+  // Near-field lamps.
+  json ap;
+  if (parseSize(o.apertureSize, w, h)) {
+    const Scene scene = resized(base, w, h);
+    Scene faced = scene;
+    faced.lamps.clear();
+    int vehicle = 0;
+    for (SceneLamp l : scene.lamps) {
+      if (l.mount == LampMount::Vehicle) {
+        l.aperture = Aperture{ApertureShape::Rectangle, 0.20, 0.10, kDefaultApertureSamples};
+        ++vehicle;
+      }
+      for (SceneLamp& p : expandSceneLamp(l)) faced.lamps.push_back(std::move(p));
+    }
+    SurfaceBuffers surface;
+    renderSurfacesCpu(scene, surface);  // the same surfaces for both: the airlight's difference only
+    auto point = cpuFrames(scene, surface, threads, o);
+    auto face = cpuFrames(faced, surface, threads, o);
+    if (!point || !face) {
+      ap["note"] = !point ? point.error().message : face.error().message;
+    } else {
+      const std::vector<double> lp = luminances(point->fullImage.rgb), lf = luminances(face->fullImage.rgb);
+      const double sp = sumOf(lp);
+      ap = {{"width", w},
+            {"height", h},
+            {"vehicle_lamps", vehicle},
+            {"face_m", {0.20, 0.10}},
+            {"samples_per_axis", kDefaultApertureSamples},
+            {"point_lamps", faced.lamps.size()},
+            {"point", {{"first_frame_ms", point->firstMs}, {"view_tables_ms", point->tableMs},
+                       {"subsampled", point->sub.toJson()}, {"full", point->full.toJson()}}},
+            {"aperture", {{"first_frame_ms", face->firstMs}, {"view_tables_ms", face->tableMs},
+                          {"subsampled", face->sub.toJson()}, {"full", face->full.toJson()}}},
+            {"aperture_vs_point_full", relativeErrors(lf, lp).toJson()},
+            {"sum_ratio", sp > 0.0 ? sumOf(lf) / sp : 0.0}};
+    }
+  }
+  out["near_field"] = ap;
+  return out;
+}
+
+void printAdditions(const json& a) {
+  std::printf("\nbeyond the paper (issue 7); glow and glare are in each size's table above\n");
+  const json& g = a["gpu_airlight"];
+  if (!g["available"].get<bool>()) {
+    std::printf("  %-30s %s\n", "GPU airlight", g["note"].get<std::string>().c_str());
+  } else {
+    std::printf("  GPU airlight at %d x %d (%s; llvmpipe runs it on this CPU), %d pieces per measured lamp:\n",
+                g["width"].get<int>(), g["height"].get<int>(), g["note"].get<std::string>().c_str(),
+                g["pieces"].get<int>());
+    printStage("  surface pass alone", g["surface_only"]);
+    printStage("  surface + GPU airlight", g["surface_and_airlight"]);
+    printStage("    of which airlight (GPU time)", g["airlight_gpu_time"]);
+    printStage("  CPU accurate, full", g["cpu_accurate_full"]);
+    printStage("  CPU accurate, subsampled", g["cpu_accurate_subsampled"]);
+    printError("  GPU vs CPU full", g["vs_cpu_full"]);
+    std::printf("  %-30s %.6f\n", "  GPU / CPU, sum over pixels", g["sum_ratio"].get<double>());
+  }
+  const json& n = a["near_field"];
+  if (n.contains("note")) {
+    std::printf("  %-30s %s\n", "near-field lamps", n["note"].get<std::string>().c_str());
+  } else if (!n.is_null()) {
+    std::printf("  near-field lamps at %d x %d: the %d vehicle lamps with a 0.20 x 0.10 m face, %d x %d points "
+                "(%zu point lamps in all):\n",
+                n["width"].get<int>(), n["height"].get<int>(), n["vehicle_lamps"].get<int>(),
+                n["samples_per_axis"].get<int>(), n["samples_per_axis"].get<int>(), n["point_lamps"].get<std::size_t>());
+    for (const char* k : {"point", "aperture"}) {
+      const json& c = n[k];
+      std::printf("  %-30s first frame %.0f ms (view tables %.0f ms)\n", k, c["first_frame_ms"].get<double>(),
+                  c["view_tables_ms"].get<double>());
+      printStage("    subsampled", c["subsampled"]);
+      printStage("    full", c["full"]);
+    }
+    printError("  aperture vs point, full", n["aperture_vs_point_full"]);
+    std::printf("  %-30s %.6f\n", "  aperture / point, sum", n["sum_ratio"].get<double>());
+  }
+}
+
 int run(BenchOptions o) {
   if (o.quick) {
     o.sizes = {"320x180"};
     o.frames = 2;
     o.stageBudgetSeconds = 3.0;
     o.viewTableStepDeg = 0.5;
+    o.gpuSize = "48x27";
+    o.apertureSize = "160x90";
   }
   std::vector<std::pair<int, int>> sizes;
   for (const std::string& s : o.sizes) {
@@ -649,6 +902,8 @@ int run(BenchOptions o) {
     std::fflush(stdout);
     root["sizes"].push_back(std::move(r));
   }
+  root["additions"] = benchAdditions(*scene, o, threads, gl.get());
+  printAdditions(root["additions"]);
   if (!o.jsonPath.empty()) {
     std::ofstream out(o.jsonPath);
     out << root.dump(2) << '\n';
@@ -677,6 +932,10 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
                   "view-table direction spacing, degrees (default 0.2, the renderer's default)")
       ->check(CLI::Range(0.01, 5.0));
   sub->add_option("--json", o->jsonPath, "also write every figure to this JSON file");
+  sub->add_option("--gpu-size", o->gpuSize,
+                  "size WIDTHxHEIGHT of the GPU airlight comparison (default 160x90: llvmpipe runs it on the CPU)");
+  sub->add_option("--aperture-size", o->apertureSize,
+                  "size WIDTHxHEIGHT of the near-field (aperture) lamps' comparison (default 320x180)");
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
   sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
       ->check(CLI::Range(10, 1000000));

@@ -2,10 +2,20 @@
 #include "commands.hpp"
 #include "lamp_models.hpp"
 
+#include <fogbeam/gl/surface_pass.hpp>
 #include <fogbeam/physics/airlight_vectors.hpp>
+#include <fogbeam/physics/aperture.hpp>
+#include <fogbeam/physics/glow.hpp>
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/airlight_kernels.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
+#include <fogbeam/render/surface.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/physics/validation.hpp>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -23,7 +33,151 @@ struct ValidateOptions {
   std::string headlamp;
   int rays = 24;
   int segments = AirlightOptions{}.accurate_segments;
+  bool additions = true;
 };
+
+using Clock = std::chrono::steady_clock;
+double usSince(Clock::time_point t0) { return std::chrono::duration<double, std::micro>(Clock::now() - t0).count(); }
+
+Medium fogHg(double kt) {
+  Medium m;
+  m.extinction_per_m = kt;
+  m.albedo = 1.0;
+  m.phase = makeHenyeyGreenstein(0.85).value();
+  return m;
+}
+
+/// Issue 7's additions, each with its effect and its cost (docs/airlight.md, "Beyond single
+/// scattering"). Returns false when a check that has a bound fails.
+bool validateAdditions(const std::shared_ptr<const Profile>& headlamp) {
+  bool ok = true;
+  const Medium fog = fogHg(0.03);
+  std::printf("\nbeyond single scattering (issue 7); fog K_t = 0.03 /m (V = 100 m), HG g = 0.85, albedo 1\n");
+  // Glow: the energy match per optical distance.
+  const auto table = kernels::IsoTable::get(fog.phase);
+  std::printf("  glow (N&N APSF, energy-matched): per lamp and frame, for a 1 cd isotropic source R away\n");
+  std::printf("    %6s %6s %8s %10s %10s %10s %6s %9s\n", "K_t R", "R m", "lambda", "single", "multiple", "mult share",
+              "terms", "cost us");
+  for (double T : {1.5, 2.0, 3.0, 5.0, 10.0}) {
+    const auto t0 = Clock::now();
+    auto c = glowCurve(*table, fog, T / fog.extinction_per_m);
+    const double us = usSince(t0);
+    if (!c) {
+      std::printf("    %6.1f: %s\n", T, c.error().message.c_str());
+      ok = false;
+      continue;
+    }
+    const double total = c->single_flux + c->multiple_flux;
+    std::printf("    %6.1f %6.0f %8.3f %10.4f %10.4f %10.2f %6d %9.0f\n", T, T / fog.extinction_per_m, c->scale,
+                c->single_flux, c->multiple_flux, total > 0 ? c->multiple_flux / total : 0.0, c->terms, us);
+    if (!(std::abs(total - (1.0 - std::exp(-T))) < 1e-6)) ok = false;
+  }
+  std::printf("    single + multiple = 1 - e^-T (the scattered power through the sphere): nothing counted twice\n");
+  // Glare.
+  std::printf("  glare (CIE 146 veiling luminance per lux at the eye, (cd/m2)/lx), pigmentation 0.5:\n");
+  std::printf("    %8s", "age");
+  for (double deg : {1.0, 3.0, 10.0, 30.0}) std::printf(" %9.0f deg", deg);
+  std::printf("\n");
+  for (double age : {25.0, 40.0, 65.0}) {
+    std::printf("    %8.0f", age);
+    for (double deg : {1.0, 3.0, 10.0, 30.0}) std::printf(" %13.4g", veilingLuminancePerLux(deg, age, 0.5));
+    std::printf("\n");
+  }
+  // Near-field lamps: a ray crossing in front of the face, h from the lamp.
+  std::printf("  near-field lamps, 0.20 x 0.10 m face: airlight of a sky ray crossing the beam h in front of the face;\n"
+              "  relative error against a 12 x 12-point reference over the face\n");
+  std::printf("    %-22s %6s %10s %10s %10s %12s %12s\n", "lamp", "h m", "L cd/m2", "point", "3x3 rule", "point us/ray",
+              "rule us/ray");
+  struct NamedLamp {
+    const char* name;
+    std::shared_ptr<const Profile> profile;
+  };
+  const NamedLamp lamps[] = {{"isotropic 1000 cd", makeProfile(IsotropicProfile{1000.0}).value()},
+                             {"headlamp (low beam)", headlamp}};
+  const Aperture face{ApertureShape::Rectangle, 0.20, 0.10, kDefaultApertureSamples};
+  for (const NamedLamp& nl : lamps) {
+    Lamp lamp;
+    lamp.profile = nl.profile;
+    auto ref = ApertureAirlight::reference(lamp, face, fog, 12);
+    auto point = ApertureAirlight::build(lamp, Aperture{}, fog, AirlightMethod::Accurate);
+    auto rule = ApertureAirlight::build(lamp, face, fog, AirlightMethod::Accurate);
+    if (!ref || !point || !rule) {
+      std::printf("    %s: %s\n", nl.name, (!ref ? ref.error() : !point ? point.error() : rule.error()).message.c_str());
+      ok = false;
+      continue;
+    }
+    for (double h : {0.3, 1.0, 5.0}) {
+      const double beta = -0.17;  // slightly below the axis: through a low beam's lit part
+      const Ray ray{Vec3(h * std::cos(beta), 6.0, h * std::sin(beta)), Vec3(0.0, -1.0, 0.0),
+                    std::numeric_limits<double>::infinity()};
+      const double l = ref->evaluate(ray);
+      constexpr int kRepeat = 200;
+      double lp = 0.0, lr = 0.0;
+      auto t0 = Clock::now();
+      for (int k = 0; k < kRepeat; ++k) lp += point->evaluate(ray);
+      const double usPoint = usSince(t0) / kRepeat;
+      t0 = Clock::now();
+      for (int k = 0; k < kRepeat; ++k) lr += rule->evaluate(ray);
+      const double usRule = usSince(t0) / kRepeat;
+      lp /= kRepeat;
+      lr /= kRepeat;
+      std::printf("    %-22s %6.1f %10.4g %9.2f%% %9.3f%% %12.2f %12.2f\n", nl.name, h, l, 100.0 * std::abs(lp - l) / l,
+                  100.0 * std::abs(lr - l) / l, usPoint, usRule);
+    }
+  }
+  // GPU airlight: the accurate method in GLSL against the CPU's, bench scene at 64 x 36.
+  auto scene = loadScene(FOGBEAM_BENCH_SCENE_FOR_VALIDATE);
+  auto gl = GlSurfacePass::create();
+  if (!scene || !gl) {
+    std::printf("  GPU airlight: skipped (%s)\n", (!scene ? scene.error() : gl.error()).message.c_str());
+    return ok;
+  }
+  scene->camera.width = 64;
+  scene->camera.height = 36;
+  SurfaceBuffers surface;
+  std::vector<float> gpuAir;
+  const auto tSurf = Clock::now();
+  Status st = (*gl)->render(*scene, surface);
+  const double surfMs = 1e-3 * usSince(tSurf);
+  if (st) st = (*gl)->setAirlight(GpuAirlightOptions{});
+  if (st) st = (*gl)->render(*scene, surface, gpuAir);  // first frame: shaders and tables
+  const auto tGpu = Clock::now();
+  if (st) st = (*gl)->render(*scene, surface, gpuAir);
+  const double gpuMs = 1e-3 * usSince(tGpu);
+  auto cpu = AirlightImageEvaluator::build(*scene, AirlightMethod::Accurate, {}, 0);
+  if (!st || !cpu) {
+    std::printf("  GPU airlight: failed (%s)\n", (!st ? st.error() : cpu.error()).message.c_str());
+    return false;
+  }
+  std::vector<double> rel;
+  double sumG = 0.0, sumC = 0.0, cpuUs = 0.0;
+  for (int j = 0; j < 36; ++j)
+    for (int i = 0; i < 64; ++i) {
+      const std::size_t k = static_cast<std::size_t>(j) * 64 + static_cast<std::size_t>(i);
+      const Ray ray{scene->camera.position_m, scene->camera.rayDirection(i + 0.5, j + 0.5),
+                    static_cast<double>(surface.distance[k])};
+      float rgb[3];
+      const auto t0 = Clock::now();
+      cpu->evaluateRay(ray, rgb);
+      cpuUs += usSince(t0);
+      const double c = static_cast<double>(rgb[0] + rgb[1] + rgb[2]) / 3.0;
+      const double g = static_cast<double>(gpuAir[3 * k] + gpuAir[3 * k + 1] + gpuAir[3 * k + 2]) / 3.0;
+      sumG += g;
+      sumC += c;
+      if (c > 1e-4) rel.push_back(std::abs(g - c) / c);
+    }
+  std::sort(rel.begin(), rel.end());
+  const double p95 = rel.empty() ? 0.0 : rel[rel.size() * 95 / 100];
+  const double mx = rel.empty() ? 0.0 : rel.back();
+  std::printf("  GPU airlight (%s), bench scene at 64 x 36, against the CPU accurate method per ray:\n",
+              (*gl)->description().c_str());
+  std::printf("    p95 %.2e, max %.2e over %zu pixels; sum ratio %.5f; frame %.0f ms with the airlight (surface alone "
+              "%.0f ms), CPU per ray %.0f ms on one thread\n",
+              p95, mx, rel.size(), sumC > 0 ? sumG / sumC : 0.0, gpuMs, surfMs, 1e-3 * cpuUs);
+  const bool gpuOk = p95 <= 0.01;
+  std::printf("    bound p95 <= 1 %%: %s\n", gpuOk ? "PASS" : "FAIL");
+  return ok && gpuOk;
+}
 
 std::string human(std::size_t bytes) {
   char b[32];
@@ -33,6 +187,7 @@ std::string human(std::size_t bytes) {
 }
 
 int run(const ValidateOptions& o) {
+  std::shared_ptr<const Profile> additionsHeadlamp = makeProfile(lamps::makeLowBeam()).value();
   std::vector<AirlightMethod> methods;
   for (const auto& m : o.methods) {
     auto pm = parseAirlightMethod(m);
@@ -61,7 +216,7 @@ int run(const ValidateOptions& o) {
     cases = std::move(c).value();
     source = o.vectors;
   } else {
-    std::shared_ptr<const Profile> headlamp;
+    std::shared_ptr<const Profile> headlamp;  // the sweep's and the near-field check's
     if (!o.headlamp.empty()) {
       auto p = loadProfileFile(o.headlamp);
       if (!p) {
@@ -69,9 +224,11 @@ int run(const ValidateOptions& o) {
         return 2;
       }
       headlamp = *p;
+      additionsHeadlamp = headlamp;
       source = "built-in sweep, headlamp " + o.headlamp;
     } else {
       headlamp = makeProfile(lamps::makeLowBeam()).value();
+      additionsHeadlamp = headlamp;
       source = "built-in sweep, headlamp = built-in low beam (config/lamps/low_beam.ies)";
     }
     std::printf("building the sweep (reference values for every case)...\n");
@@ -107,6 +264,7 @@ int run(const ValidateOptions& o) {
       if (!ok) exitCode = 1;
     }
   }
+  if (o.additions && !validateAdditions(additionsHeadlamp)) exitCode = 1;
   if (!o.out.empty()) {
     std::ofstream f(o.out);
     if (!f) {
@@ -141,6 +299,8 @@ void addValidateCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--methods", opts->methods, "methods to run (default: seed accurate reference)")->delimiter(',');
   sub->add_option("--headlamp", opts->headlamp,
                   "sweep only: headlamp profile file (.ies/.ldt/.csv) instead of the built-in low beam");
+  sub->add_flag("!--no-additions", opts->additions,
+                "skip the checks of issue 7's additions (glow energy, glare, near-field lamps, GPU airlight)");
   sub->add_option("--rays", opts->rays, "sweep only: rays per situation (default 24; 7 fogs x 2 profiles x 4 situations)")
       ->check(CLI::Range(1, 10000));
   sub->add_option("--segments", opts->segments,

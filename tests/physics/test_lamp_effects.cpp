@@ -282,6 +282,13 @@ TEST(LampEffectsLayers, SwitchedOffLampsAndLampsBehindTheEyeGiveNothing) {
   ASSERT_EQ(rep.lamps.size(), 1u);
   EXPECT_FALSE(rep.lamps[0].visible);
   EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
+  // The driver's own lamps (mount = vehicle) give neither: the bonnet hides them.
+  s.scene.lamps[0].lamp.position_m = Vec3(80.0, 10.0, 6.2);
+  s.scene.lamps[0].mount = LampMount::Vehicle;
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  EXPECT_TRUE(rep.lamps.empty());
+  EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
+  s.scene.lamps[0].mount = LampMount::World;
   // A lamp added after build() (traffic arriving) is evaluated, switched on.
   s.scene.lamps[0].lamp.position_m = Vec3(80.0, 10.0, 6.2);
   SceneLamp second = s.scene.lamps[0];

@@ -187,6 +187,11 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   for (std::size_t li = 0; li < scene.lamps.size(); ++li) {
     if (!enabled_[li]) continue;
     const SceneLamp& sl = scene.lamps[li];
+    // The driver's own lamps (mount = vehicle) sit ahead of and below the eye, behind the
+    // bonnet and inside their housings: their direct light does not reach the eye, so they have
+    // neither glow nor glare (their veil is the airlight layer's). Their profiles may still hold
+    // candela values backwards (a measured file's rear hemisphere), which would otherwise count.
+    if (sl.mount == LampMount::Vehicle) continue;
     const Lamp& lamp = sl.lamp;
     const Vec3 toLamp = lamp.position_m - cam.position_m;
     const double R = glm::length(toLamp);

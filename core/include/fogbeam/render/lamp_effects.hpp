@@ -31,6 +31,9 @@
 //    light I e^{−T} / R²; added to the displayed image as disability glare is seen. The report
 //    gives its value at the image centre and each lamp's E.
 //
+// Lamps with mount = "vehicle" (the driver's own) are left out of both: the bonnet and their
+// housings keep their direct light from the eye.
+//
 // Both layers are linear cd/m² per channel (lamp colour), 3 floats per pixel, row 0 at the top.
 // Thread-safety: one evaluate() at a time per LampEffects; glowCurve is reentrant.
 #pragma once
