@@ -60,7 +60,7 @@ void printEffects(const LampEffectsReport& r, bool glow, bool glare) {
     } else {
       it->second.sum.eye_illuminance_lx += l.eye_illuminance_lx;
       it->second.sum.glow_peak_cd_m2 += l.glow_peak_cd_m2;
-      it->second.sum.intensity_cd += l.intensity_cd;
+      it->second.sum.intensity_cd += l.intensity_cd;  // luminous: each point's share
       it->second.sum.glow_source_cd += l.glow_source_cd;
     }
     ++it->second.points;

@@ -201,8 +201,14 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     rep.name = sl.name;
     rep.distance_m = R;
     rep.optical_distance = kt * R;
-    rep.intensity_cd = lamp.profile->intensity(glm::transpose(lamp.worldFromLamp) * (-toLamp / R));
-    rep.eye_illuminance_lx = rep.intensity_cd * std::exp(-kt * R) / (R * R);
+    // The layers carry colour × the profile's values; the report gives luminous figures, the
+    // profile's × the colour's mean (1 for white; the point lamps of an aperture carry their
+    // quadrature weight in the colour, so theirs add up to the lamp's).
+    const double luminous = (lamp.color.x + lamp.color.y + lamp.color.z) / 3.0;
+    const double intensity = lamp.profile->intensity(glm::transpose(lamp.worldFromLamp) * (-toLamp / R));
+    const double illuminance = intensity * std::exp(-kt * R) / (R * R);  // profile's, lux
+    rep.intensity_cd = luminous * intensity;
+    rep.eye_illuminance_lx = luminous * illuminance;
     // Hidden: its image is in the frame and the surface there is nearer than the lamp.
     bool visible = eCam.x > 0.0;
     if (visible) {
@@ -212,13 +218,13 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         visible = !(static_cast<double>(surface.distance[k]) < 0.98 * R);
       }
     }
-    rep.visible = visible && rep.intensity_cd > 0.0;
+    rep.visible = visible && intensity > 0.0;
     Tables::Radial rad;
     for (int k = 0; k < 3; ++k) rad.e[k] = static_cast<float>(eCam[k]);
     rad.distance = static_cast<float>(R);
     if (rep.visible) report.eye_illuminance_lx += rep.eye_illuminance_lx;
     if (glare_.enabled && rep.visible) {
-      for (int k = 0; k < 3; ++k) rad.color[k] = static_cast<float>(lamp.color[k] * rep.eye_illuminance_lx);
+      for (int k = 0; k < 3; ++k) rad.color[k] = static_cast<float>(lamp.color[k] * illuminance);
       rad.table = t.cieGlare.data();
       t.glare.push_back(rad);
       // At the image centre: the camera's +x.
@@ -233,15 +239,16 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         rep.glow_scale = curve->scale;
         const double total = curve->single_flux + curve->multiple_flux;
         rep.glow_share = total > 0.0 ? curve->multiple_flux / total : 0.0;
-        rep.glow_source_cd = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
+        const double source = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
+        rep.glow_source_cd = luminous * source;
         const double fade = std::clamp((rep.optical_distance - Apsf::minOpticalDistance()) /
                                            (glow_.fade_in - Apsf::minOpticalDistance() + 1e-12),
                                        0.0, 1.0);
         float* table = t.glowTables.data() + static_cast<std::size_t>(kNodes) * li;
         for (int i = 0; i < kNodes; ++i) {
-          const double g = fade * rep.glow_source_cd * curve->glow[static_cast<std::size_t>(i)];
+          const double g = fade * source * curve->glow[static_cast<std::size_t>(i)];
           table[i] = static_cast<float>(g);
-          rep.glow_peak_cd_m2 = std::max(rep.glow_peak_cd_m2, g);
+          rep.glow_peak_cd_m2 = std::max(rep.glow_peak_cd_m2, luminous * g);
         }
         for (int k = 0; k < 3; ++k) rad.color[k] = static_cast<float>(lamp.color[k]);
         rad.table = table;

@@ -56,6 +56,8 @@ struct LampEffectsReport {
     bool visible = false;            ///< in front of the eye and not hidden behind a surface
     double distance_m = 0.0;
     double optical_distance = 0.0;   ///< K_t R
+    // Luminous figures: the profile's values × the mean of the lamp's colour (1 for white), so
+    // that the point lamps of an aperture (colour × weight) add up to their lamp's.
     double intensity_cd = 0.0;       ///< towards the eye
     double eye_illuminance_lx = 0.0; ///< direct light at the eye, I e^{−K_t R} / R²
     double glow_source_cd = 0.0;     ///< the glow's source: mean intensity over the cone about the eye
