@@ -17,9 +17,11 @@
 // (Apsf::netFluxRatio checks it: 1 + e^{−β_2 T}/T, within 3e-3 of 1 from T = 10 at q = 0.85.)
 //
 // No double counting. The single-scattering layer is computed exactly (airlight.hpp); the glow
-// added to it is the APSF minus the single-scattered part of the same isotropic source, clamped
-// at 0: glowRadiance(). The lamp enters as an isotropic source of its intensity towards the eye
-// (exact for street lamps, a stand-in for headlamps facing the eye; stated in docs/airlight.md).
+// added to it (render/lamp_effects.hpp, glowCurve) is λ · max(0, A − S₁): the APSF less the
+// exact single scattering of the same isotropic source, scaled by λ so that single + glow carry
+// the scattered power through the sphere of radius R, I (1 − e^{−T}) (albedo 1). The lamp enters
+// as an isotropic source of its mean intensity over a cone about the direction of the eye (exact
+// for street lamps, a stand-in for headlamps; docs/airlight.md, "Beyond single scattering").
 //
 // Disability glare (CIE 146:2002, the general disability glare equation): the veiling luminance
 // that scattered light in the eye adds at the fovea, for a glare source at angle θ (degrees,
