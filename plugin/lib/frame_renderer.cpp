@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <map>
 #include <optional>
 #include <utility>
 
@@ -88,6 +89,31 @@ ipc::Environment environmentFrom(const Medium& m) {
   return e;
 }
 
+std::vector<RigPoint> expandRig(const VehicleRig& rig) {
+  std::vector<RigPoint> points;
+  for (std::size_t i = 0; i < rig.lamps.size(); ++i) {
+    for (SceneLamp& p : expandSceneLamp(rig.lamps[i].lamp)) points.push_back(RigPoint{std::move(p), i});
+  }
+  return points;
+}
+
+SceneLamp placeRigPoint(const RigPoint& point, const RigLamp& lamp, const Mat3& worldFromVehicle, const Vec3& origin_m,
+                        const Mat3* bend) {
+  SceneLamp l = point.lamp;
+  Vec3 p = point.lamp.lamp.position_m;
+  Mat3 orientation = point.lamp.lamp.worldFromLamp;
+  if (bend) {
+    // About the vertical axis through the rig lamp's centre (its position), not through each
+    // point: the face turns as one piece.
+    const Vec3 centre = lamp.lamp.lamp.position_m;
+    p = centre + *bend * (p - centre);
+    orientation = *bend * orientation;
+  }
+  l.lamp.position_m = origin_m + worldFromVehicle * p;
+  l.lamp.worldFromLamp = worldFromVehicle * orientation;
+  return l;
+}
+
 struct ChannelRenderer::Impl {
   const ServiceConfig* config = nullptr;
   ChannelConfig channel;
@@ -98,6 +124,24 @@ struct ChannelRenderer::Impl {
   SubsamplingOptions subsampling;
   std::uint32_t format = FOGBEAM_FORMAT_RGBA8_SRGB;
   Camera vehicleCamera;  ///< the channel's camera in the vehicle frame
+  /// The ego rig's point lamps (expandRig), and each traffic rig's (by rig, as rigFor gives it).
+  std::vector<RigPoint> egoPoints;
+  std::map<const VehicleRig*, std::vector<RigPoint>> trafficPoints;
+
+  /// [render] airlight = "gpu": the GL pass computes the airlight; no CPU evaluator, no tables.
+  bool gpuAirlight = false;
+  std::vector<float> gpuAir;             ///< the GL pass's airlight, 3 per pixel
+  std::shared_ptr<ThreadPool> gpuPool;   ///< the glow/glare passes' pool when there is no CPU evaluator
+
+  /// Glow and glare ([glow], [glare]), evaluated on each frame's lit scene (its lamp list changes
+  /// with traffic and light bits, which LampEffects follows). LampEffects::build takes the fog's
+  /// phase (its single-scattering table) from the scene it is given, so it is rebuilt when the
+  /// tables' key (fog, hence phase) changes, and when the evaluator's pool changes (a table
+  /// rebuild makes a new evaluator with its own pool). A rebuild costs a 512-entry CIE table, µs.
+  std::optional<LampEffects> effects;
+  TableKey effectsKey;
+  const ThreadPool* effectsPool = nullptr;
+  std::vector<float> glow, glare;
 
   std::unique_ptr<AirlightImageEvaluator> eval;  ///< tables for `current`
   TableKey current;
@@ -118,12 +162,11 @@ struct ChannelRenderer::Impl {
     s.camera.position_m = O + R * vehicleCamera.position_m;
     s.camera.worldFromCamera = R * vehicleCamera.worldFromCamera;
     const Mat3 bend = worldFromYawPitchRoll(radians(key.bendingSteps * kBendingStepDeg), 0.0, 0.0);
-    for (const RigLamp& r : config->ego.lamps) {
-      SceneLamp l = r.lamp;
-      l.mount = LampMount::Vehicle;
-      l.lamp.position_m = O + R * r.lamp.lamp.position_m;
+    for (const RigPoint& p : egoPoints) {
       // Bending swivels the lamp about the vehicle's vertical axis through the lamp.
-      l.lamp.worldFromLamp = R * (r.bending ? bend * r.lamp.lamp.worldFromLamp : r.lamp.lamp.worldFromLamp);
+      const RigLamp& r = config->ego.lamps[p.rig_lamp];
+      SceneLamp l = placeRigPoint(p, r, R, O, r.bending ? &bend : nullptr);
+      l.mount = LampMount::Vehicle;
       s.lamps.push_back(std::move(l));
     }
     return s;
@@ -169,6 +212,21 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
   impl->vehicleCamera = channelCamera(config, impl->channel);
+  impl->egoPoints = expandRig(config.ego);
+  for (const auto& [cls, rig] : config.traffic) impl->trafficPoints.emplace(&rig, expandRig(rig));
+  if (config.effects.render.airlight == AirlightDevice::Gpu) {
+    if (!gl) {
+      return Error{"[render] airlight = \"gpu\" needs the GL surface pass, and there is none (surface = \"" +
+                   config.surface + "\", or no EGL/OpenGL here): use airlight = \"cpu\""};
+    }
+    GpuAirlightOptions gpu;
+    gpu.pieces = config.effects.render.gpu_pieces;
+    if (Status s = gl->setAirlight(gpu); !s) return Error{"[render] airlight = \"gpu\": " + s.error().message};
+    impl->gpuAirlight = true;
+    if (config.effects.glow.enabled || config.effects.glare.enabled) {
+      impl->gpuPool = std::make_shared<ThreadPool>(config.threads);
+    }
+  }
   return std::unique_ptr<ChannelRenderer>(new ChannelRenderer(std::move(impl)));
 }
 
@@ -190,35 +248,45 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   want.bendingSteps = anyBending ? static_cast<int>(std::lround(bend / kBendingStepDeg)) : 0;
 
   const auto tw = Clock::now();
-  if (m.building.valid() && (wait || m.building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
-    auto built = m.building.get();
-    if (!built) return built.error();
-    m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
-    m.current = m.next;
-  }
-  if (!m.eval || !(m.current == want)) {
-    if (wait || !m.eval) {
-      auto built = m.buildFor(m.sceneFor(ego, want));
+  if (m.gpuAirlight) {
+    // Nothing is tabulated on the CPU: every frame renders its own fog and bending at once.
+    m.current = want;
+  } else {
+    if (m.building.valid() && (wait || m.building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
+      auto built = m.building.get();
       if (!built) return built.error();
       m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
-      m.current = want;
-    } else if (!m.building.valid()) {
-      m.next = want;
-      m.building = std::async(std::launch::async, [&m, scene = m.sceneFor(ego, want)] { return m.buildFor(scene); });
+      m.current = m.next;
+    }
+    if (!m.eval || !(m.current == want)) {
+      if (wait || !m.eval) {
+        auto built = m.buildFor(m.sceneFor(ego, want));
+        if (!built) return built.error();
+        m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+        m.current = want;
+      } else if (!m.building.valid()) {
+        m.next = want;
+        m.building = std::async(std::launch::async, [&m, scene = m.sceneFor(ego, want)] { return m.buildFor(scene); });
+      }
     }
   }
   out.table_wait_ms = ms(tw, Clock::now());
   out.pending = !(m.current == want);
 
+  // The scene: world lamps, then the ego rig's point lamps (all of them: the evaluator's view
+  // tables are per lamp, lamps that are off are switched off in it, not removed).
   Scene scene = m.sceneFor(ego, m.current);
-  if (Status s = m.eval->setLampPoses(scene); !s) return s;
-  Scene lit = scene;  // the lamps that are on, for the surface pass
+  if (m.eval) {
+    if (Status s = m.eval->setLampPoses(scene); !s) return s;
+  }
+  Scene lit = scene;  // the lamps that are on: for the surface pass, the GPU airlight, glow and glare
   lit.lamps.clear();
   const std::size_t worldCount = m.world.lamps.size();
   for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
-    const std::uint32_t bit = i < worldCount ? 0u : m.config->ego.lamps[i - worldCount].light_bit;
+    // All points of an aperture lamp switch together: by their rig lamp's light bit.
+    const std::uint32_t bit = i < worldCount ? 0u : m.config->ego.lamps[m.egoPoints[i - worldCount].rig_lamp].light_bit;
     const bool on = bit == 0 || (lights & bit) != 0;
-    m.eval->setLampEnabled(i, on);
+    if (m.eval) m.eval->setLampEnabled(i, on);
     if (on) lit.lamps.push_back(scene.lamps[i]);
   }
   // Traffic: each live object's rig lamps that its light bits switch on, at its pose.
@@ -232,35 +300,74 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
     if (!rig) continue;
     const Mat3 R = rotation(e.object.pose);
     const Vec3 O = position(e.object.pose);
-    for (const RigLamp& r : rig->lamps) {
+    for (const RigPoint& p : m.trafficPoints.at(rig)) {
+      const RigLamp& r = rig->lamps[p.rig_lamp];
       if (r.light_bit != 0 && (e.object.lights & r.light_bit) == 0) continue;
-      SceneLamp w = r.lamp;
+      SceneLamp w = placeRigPoint(p, r, R, O, nullptr);
       w.mount = LampMount::World;
-      w.lamp.position_m = O + R * r.lamp.lamp.position_m;
-      w.lamp.worldFromLamp = R * r.lamp.lamp.worldFromLamp;
       traffic.lamps.push_back(w);
       lit.lamps.push_back(std::move(w));
     }
   }
 
   const auto tS = Clock::now();
-  if (!m.gl || !m.gl->render(lit, m.surface)) renderSurfacesCpu(lit, m.surface);
+  double gpuAirlightMs = 0.0;
+  if (m.gpuAirlight) {
+    // Surfaces and the airlight of every lit lamp (world, ego, traffic) in one GL pass.
+    if (Status s = m.gl->render(lit, m.surface, m.gpuAir); !s) return Error{"GL surface pass: " + s.error().message};
+    gpuAirlightMs = m.gl->stats().airlight_ms;
+  } else if (!m.gl || !m.gl->render(lit, m.surface)) {
+    renderSurfacesCpu(lit, m.surface);
+  }
   const auto tA = Clock::now();
-  m.eval->evaluate(scene, m.surface, m.subsampling, m.air);
-  out.airlight_evaluated = m.air.evaluated;
   out.traffic_evaluated = 0;
-  if (!traffic.lamps.empty()) {
-    // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
-    // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
-    // per-lamp tables come from the evaluators' caches, the pool is the frame's.
-    auto te = AirlightImageEvaluator::build(traffic, m.method, AirlightOptions{}, m.eval->pool(), m.fast);
-    if (!te) return te.error();
-    te->evaluate(traffic, m.surface, m.subsampling, m.trafficAir);
-    out.traffic_evaluated = m.trafficAir.evaluated;
-    for (std::size_t k = 0; k < m.air.rgb.size(); ++k) m.air.rgb[k] += m.trafficAir.rgb[k];
+  if (m.gpuAirlight) {
+    m.air.width = m.surface.width;
+    m.air.height = m.surface.height;
+    m.air.rgb.swap(m.gpuAir);  // no copy; the GL pass refills the other buffer next frame
+    m.air.evaluated = static_cast<std::size_t>(m.surface.width) * static_cast<std::size_t>(m.surface.height);
+    out.airlight_evaluated = m.air.evaluated;
+  } else {
+    m.eval->evaluate(scene, m.surface, m.subsampling, m.air);
+    out.airlight_evaluated = m.air.evaluated;
+    if (!traffic.lamps.empty()) {
+      // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
+      // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
+      // per-lamp tables come from the evaluators' caches, the pool is the frame's.
+      auto te = AirlightImageEvaluator::build(traffic, m.method, AirlightOptions{}, m.eval->pool(), m.fast);
+      if (!te) return te.error();
+      te->evaluate(traffic, m.surface, m.subsampling, m.trafficAir);
+      out.traffic_evaluated = m.trafficAir.evaluated;
+      for (std::size_t k = 0; k < m.air.rgb.size(); ++k) m.air.rgb[k] += m.trafficAir.rgb[k];
+    }
+  }
+  const auto tF = Clock::now();
+
+  // Glow and glare of the lamps that are on, seen from this frame's eye through its fog, with
+  // the surfaces' distances (a lamp behind a surface has neither). The lit scene holds only the
+  // lamps that are on; LampEffects leaves the ego's own (vehicle-mounted) lamps out itself.
+  out.effects = LampEffectsReport{};
+  out.effects_ms = 0.0;
+  const SceneEffects& fx = m.config->effects;
+  EffectLayers layers;
+  if (fx.glow.enabled || fx.glare.enabled) {
+    const std::shared_ptr<ThreadPool>& pool = m.eval ? m.eval->pool() : m.gpuPool;
+    if (!m.effects || !(m.effectsKey == m.current) || m.effectsPool != pool.get()) {
+      // The old instance lives until the new one is built, so its single-scattering table
+      // (cached while someone holds it) is reused when the phase has not changed.
+      auto built = LampEffects::build(lit, fx.glow, fx.glare, pool);
+      if (!built) return built.error();
+      m.effects = std::move(built).value();
+      m.effectsKey = m.current;
+      m.effectsPool = pool.get();
+    }
+    m.effects->evaluate(lit, m.surface, m.glow, m.glare, out.effects);
+    layers.glow = &m.glow;
+    layers.glare = &m.glare;
   }
   const auto tC = Clock::now();
-  compositeFrame(scene.fog, m.surface, m.air, out.layers);
+  if (fx.glow.enabled || fx.glare.enabled) out.effects_ms = ms(tF, tC);
+  compositeFrame(scene.fog, m.surface, m.air, out.layers, layers);
   const std::size_t n = static_cast<std::size_t>(m.channel.width) * static_cast<std::size_t>(m.channel.height);
   out.packed.resize(n * ipc::bytesPerPixel(m.format));
   if (m.format == FOGBEAM_FORMAT_RGBA8_SRGB) {
@@ -285,8 +392,10 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   meta.lamp_sequence = state.lamps.stamp.sequence;
   meta.environment_sequence = state.environment.stamp.sequence;
   meta.traffic_count = trafficCount;
-  meta.surface_ms = ms(tS, tA);
-  meta.airlight_ms = ms(tA, tC);
+  // With the GPU airlight, surfaces and airlight are one GL pass: its airlight draw's GPU time
+  // (timer query) is the airlight, the rest of the pass's wall time the surface.
+  meta.surface_ms = std::max(0.0, ms(tS, tA) - gpuAirlightMs);
+  meta.airlight_ms = ms(tA, tF) + gpuAirlightMs;
   meta.composite_ms = ms(tC, tE);
   meta.total_ms = ms(t0, tE);
   // The whole horizontal and vertical extent (off-axis views: left + right, up + down).

@@ -26,7 +26,10 @@ using config::Section;
 constexpr std::array kTopKeys{
     KeySpec{"world", "table [world]: scene, scenario, scenario_loop"},
     KeySpec{"fog", "table [fog]: scene [fog] keys, the fog until a host sends one"},
-    KeySpec{"render", "table [render]: method, subsampling, view_table_step_deg, moving_lamps, surface, threads"},
+    KeySpec{"render", "table [render]: method, subsampling, view_table_step_deg, moving_lamps, surface, threads, "
+                      "airlight, gpu_pieces"},
+    KeySpec{"glow", "table [glow]: enabled, fade_in (the scene's [glow] keys): glow around lamps in view"},
+    KeySpec{"glare", "table [glare]: enabled, age_years, pigmentation (the scene's [glare] keys): disability glare"},
     KeySpec{"timing", "table [timing]: mode, rate_hz"},
     KeySpec{"status", "table [status]: interval_s, udp_port"},
     KeySpec{"input", "table [input]: [input.udp], [input.can]"},
@@ -39,6 +42,8 @@ constexpr std::array kWorldKeys{
     KeySpec{"scenario", "string, path, or \"\" for none: played when no host sends"},
     KeySpec{"scenario_loop", "boolean, default true"},
 };
+/// The service's own [render] keys; the table also takes the scene's [render] keys
+/// (config::renderKeys(): airlight, gpu_pieces).
 constexpr std::array kRenderKeys{
     KeySpec{"method", "\"accurate\" | \"seed\" | \"reference\""},
     KeySpec{"subsampling", "boolean"},
@@ -166,6 +171,21 @@ VehicleRig parseRig(const Section& s, const std::string& baseDir, bool ego) {
   return rig;
 }
 
+/// [render] airlight and gpu_pieces, the scene's [render] keys (config::renderKeys(),
+/// docs/scene.md), each keeping the lower layer's value when left out. Not through
+/// config::parseRenderSettings: it rejects every key but its own, and this table also holds the
+/// service's. The choices and the range are the scene's (core/src/scene/effects.cpp);
+/// ServiceConfig.RenderKeysTakeTheSceneFilesValues checks both against a scene file so that the
+/// two cannot drift apart.
+constexpr std::array<std::string_view, 2> kAirlightDevices{"cpu", "gpu"};
+constexpr std::int64_t kGpuPiecesMin = 4, kGpuPiecesMax = 1024;
+
+void parseAirlightDevice(const Section& s, RenderSettings& r) {
+  r.airlight = s.choice("airlight", kAirlightDevices, toString(r.airlight)) == "gpu" ? AirlightDevice::Gpu
+                                                                                      : AirlightDevice::Cpu;
+  r.gpu_pieces = static_cast<int>(s.integer("gpu_pieces", kGpuPiecesMin, kGpuPiecesMax, r.gpu_pieces));
+}
+
 void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& name, const std::string& baseDir) {
   const Section top(name, root, "");
   top.checkKeys(kTopKeys);
@@ -185,7 +205,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
   }
   if (const toml::table* t = top.optTable("render")) {
     const Section s(name, *t, "[render]");
-    s.checkKeys(kRenderKeys);
+    s.checkKeys(kRenderKeys, config::renderKeys());
     const std::array<std::string_view, 3> methods{"accurate", "seed", "reference"};
     c.method = s.choice("method", methods, c.method);
     c.subsampling = s.boolean("subsampling", c.subsampling);
@@ -195,6 +215,24 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
     c.surface = s.choice("surface", surfaces, c.surface);
     c.threads = static_cast<unsigned>(s.integer("threads", 0, 256, c.threads));
+    parseAirlightDevice(s, c.effects.render);
+  }
+  // [glow] and [glare]: the scene's tables, parsed by the scene's code. As in a scene file the
+  // table's presence turns its effect on unless it says `enabled = false`; its other keys keep
+  // the lower layer's value when left out (so `--set glare.age_years=60` turns glare on, for a
+  // 60-year-old driver).
+  if (const toml::table* t = top.optTable("glow")) {
+    const Section s(name, *t, "[glow]");
+    const GlowOptions g = config::parseGlow(s);
+    c.effects.glow.enabled = g.enabled;
+    if (s.find("fade_in")) c.effects.glow.fade_in = g.fade_in;
+  }
+  if (const toml::table* t = top.optTable("glare")) {
+    const Section s(name, *t, "[glare]");
+    const GlareOptions g = config::parseGlare(s);
+    c.effects.glare.enabled = g.enabled;
+    if (s.find("age_years")) c.effects.glare.age_years = g.age_years;
+    if (s.find("pigmentation")) c.effects.glare.pigmentation = g.pigmentation;
   }
   if (const toml::table* t = top.optTable("timing")) {
     const Section s(name, *t, "[timing]");
@@ -396,6 +434,18 @@ Status validate(const ServiceConfig& c) {
   if (c.status_udp_port != 0 && c.status_udp_port == c.udp_port) {
     return Error{where + ": [status] udp_port equals [input.udp] port " + std::to_string(c.udp_port)};
   }
+  if (c.effects.render.airlight == AirlightDevice::Gpu) {
+    // The GPU airlight is a stage of the GL surface pass (GlSurfacePass::setAirlight).
+    if (c.surface == "cpu") {
+      return Error{where + ": [render] airlight = \"gpu\" needs the GL surface pass, but surface = \"cpu\" "
+                           "(use surface = \"gl\" or \"auto\", or airlight = \"cpu\")"};
+    }
+    // Its shader is the accurate method; the seed and the reference exist on the CPU only.
+    if (c.method != "accurate") {
+      return Error{where + ": [render] airlight = \"gpu\" computes the accurate method, but method = \"" + c.method +
+                   "\" (use method = \"accurate\", or airlight = \"cpu\")"};
+    }
+  }
   return Ok{};
 }
 
@@ -414,7 +464,11 @@ std::string toToml(const ServiceConfig& c) {
   o << "\n[render]\nmethod = " << quoted(c.method) << "\nsubsampling = " << flag(c.subsampling)
     << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nmoving_lamps = " << quoted(c.moving_lamps)
     << "\nsurface = " << quoted(c.surface)
-    << "\nthreads = " << c.threads << "\n";
+    << "\nthreads = " << c.threads << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
+    << "\ngpu_pieces = " << c.effects.render.gpu_pieces << "\n";
+  o << "\n[glow]\nenabled = " << flag(c.effects.glow.enabled) << "\nfade_in = " << num(c.effects.glow.fade_in) << "\n";
+  o << "\n[glare]\nenabled = " << flag(c.effects.glare.enabled) << "\nage_years = " << num(c.effects.glare.age_years)
+    << "\npigmentation = " << num(c.effects.glare.pigmentation) << "\n";
   o << "\n[timing]\nmode = " << quoted(c.lock_step ? "lock-step" : "free-running") << "\nrate_hz = " << num(c.rate_hz)
     << "\n";
   o << "\n[status]\ninterval_s = " << num(c.status_interval_s) << "\nudp_port = " << c.status_udp_port << "\n";

@@ -129,6 +129,8 @@ int run(const ReplayOptions& o) {
   if (cfg->surface != "cpu") {
     if (auto g = GlSurfacePass::create()) gl = std::move(g).value();
     else if (cfg->surface == "gl") return fail(g.error().message);
+    else if (cfg->effects.render.airlight == AirlightDevice::Gpu)
+      return fail("[render] airlight = \"gpu\" needs the GL surface pass: " + g.error().message);
     else std::fprintf(stderr, "fogbeam replay: GL unavailable (%s); CPU planes only\n", g.error().message.c_str());
   }
   auto renderer = plugin::ChannelRenderer::create(*cfg, channel, *world, gl.get());
@@ -137,20 +139,32 @@ int run(const ReplayOptions& o) {
   const double end = o.end_s >= 0.0 ? std::min(o.end_s, scenario->duration_s) : scenario->duration_s;
   const auto count = static_cast<std::size_t>(std::floor((end - o.start_s) * o.fps + 1e-9)) + 1;
   const plugin::ChannelConfig& ch = cfg->channels[channel];
-  std::printf("fogbeam replay: %s (%s), %.2f s at %.3g fps = %zu frames, %dx%d, method %s, into %s\n",
+  std::printf("fogbeam replay: %s (%s), %.2f s at %.3g fps = %zu frames, %dx%d, method %s (%s), glow %s, glare %s, "
+              "into %s\n",
               scenario->name.c_str(), o.scenario.c_str(), end - o.start_s, o.fps, count, ch.width, ch.height,
-              cfg->method.c_str(), o.out.c_str());
+              cfg->method.c_str(), std::string(toString(cfg->effects.render.airlight)).c_str(),
+              cfg->effects.glow.enabled ? "on" : "off", cfg->effects.glare.enabled ? "on" : "off", o.out.c_str());
   std::fflush(stdout);
 
   ipc::StateStore store;
   std::uint32_t sequence = 1;
   plugin::RenderedFrame frame;
-  std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs;
+  std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs, glowMs, glareMs, eyeLux, veiling;
+  // Glow and glare ([glow], [glare]): their figures per frame, as extra columns at the end.
+  const bool effects = cfg->effects.glow.enabled || cfg->effects.glare.enabled;
   std::vector<png::RgbImage> thumbs;
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   const auto t0 = Clock::now();
   std::ofstream timeline(fs::path(o.out) / "frames.csv");
-  timeline << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px\n";
+  // Per visible lamp and frame (glow or glare on): what the frame's figures are made of.
+  std::ofstream lampRows;
+  if (effects) {
+    lampRows.open(fs::path(o.out) / "effects_lamps.csv");
+    lampRows << "frame,t_s,lamp,distance_m,optical_distance,intensity_cd,eye_illuminance_lx,glow_source_cd,"
+                "glow_peak_cd_m2\n";
+  }
+  timeline << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px"
+           << (effects ? ",eye_illuminance_lx,veiling_luminance_cd_m2,glow_ms,glare_ms" : "") << "\n";
   for (std::size_t k = 0; k < count; ++k) {
     const double t = o.start_s + static_cast<double>(k) / o.fps;
     const auto now = Clock::now();
@@ -179,7 +193,27 @@ int run(const ReplayOptions& o) {
     writeMs.push_back(std::chrono::duration<double, std::milli>(c - b).count());
     timeline << k << "," << t << "," << plugin::lightNames(frame.meta.lights) << "," << frame.meta.traffic_count << ","
              << total << "," << frame.table_wait_ms << "," << frame.meta.surface_ms << "," << frame.meta.airlight_ms
-             << "," << frame.airlight_evaluated << "\n";
+             << "," << frame.airlight_evaluated;
+    if (effects) {
+      const LampEffectsReport& fx = frame.effects;
+      eyeLux.push_back(fx.eye_illuminance_lx);
+      veiling.push_back(fx.veiling_luminance_cd_m2);
+      glowMs.push_back(1e3 * fx.glow_seconds);
+      glareMs.push_back(1e3 * fx.glare_seconds);
+      timeline << "," << fx.eye_illuminance_lx << "," << fx.veiling_luminance_cd_m2 << "," << 1e3 * fx.glow_seconds
+               << "," << 1e3 * fx.glare_seconds;
+      for (const LampEffectsReport::Lamp& l : fx.lamps) {
+        if (!l.visible) continue;
+        // CSV: the name quoted (names may hold commas), quotes doubled.
+        std::string quotedName = "\"";
+        for (char letter : l.name) quotedName += letter == '"' ? std::string("\"\"") : std::string(1, letter);
+        quotedName += "\"";
+        lampRows << k << "," << t << "," << quotedName << "," << l.distance_m << "," << l.optical_distance << ","
+                 << l.intensity_cd << "," << l.eye_illuminance_lx << "," << l.glow_source_cd << "," << l.glow_peak_cd_m2
+                 << "\n";
+      }
+    }
+    timeline << "\n";
     // Progress: a bar redrawn in place on a terminal, a line per 10 % in logs.
     const double done = static_cast<double>(k + 1) / static_cast<double>(count);
     const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -215,15 +249,28 @@ int run(const ReplayOptions& o) {
   std::printf("  of which        table builds (fog/rig changes) median %.1f ms, max %.1f ms; surface median %.1f ms; "
               "airlight median %.1f ms\n",
               percentile(waitMs, 0.5), percentile(waitMs, 1.0), percentile(surfaceMs, 0.5), percentile(airMs, 0.5));
+  if (effects) {
+    // Eye illuminance: Σ over the visible lamps of I e^{−K_t R} / R²; veiling luminance: the
+    // CIE 146 stray light at the image centre (0 without [glare]).
+    std::printf("  glow / glare    median %.2f / %.2f ms per frame; eye illuminance max %.3g lx, veiling luminance at "
+                "the centre max %.3g cd/m2 (per frame: frames.csv)\n",
+                percentile(glowMs, 0.5), percentile(glareMs, 0.5), percentile(eyeLux, 1.0), percentile(veiling, 1.0));
+  }
   std::printf("  writing         median %.1f ms per frame\n", percentile(writeMs, 0.5));
-  std::printf("  wrote           %s/frame_*.%s, frames.csv, %s\n", o.out.c_str(),
-              o.exr && o.png ? "{exr,png}" : o.exr ? "exr" : "png", sheetPath.c_str());
+  std::printf("  wrote           %s/frame_*.%s, frames.csv%s, %s\n", o.out.c_str(),
+              o.exr && o.png ? "{exr,png}" : o.exr ? "exr" : "png", effects ? ", effects_lamps.csv" : "",
+              sheetPath.c_str());
   std::ofstream json(fs::path(o.out) / "timing.json");
   json << "{\"scenario\": \"" << scenario->name << "\", \"frames\": " << count << ", \"fps\": " << o.fps
        << ", \"width\": " << ch.width << ", \"height\": " << ch.height << ", \"method\": \"" << cfg->method
        << "\", \"wall_s\": " << wall << ", \"frame_ms_median\": " << percentile(totalMs, 0.5)
-       << ", \"frame_ms_p95\": " << percentile(totalMs, 0.95) << ", \"table_ms_max\": " << percentile(waitMs, 1.0)
-       << "}\n";
+       << ", \"frame_ms_p95\": " << percentile(totalMs, 0.95) << ", \"table_ms_max\": " << percentile(waitMs, 1.0);
+  if (effects) {
+    json << ", \"glow_ms_median\": " << percentile(glowMs, 0.5) << ", \"glare_ms_median\": " << percentile(glareMs, 0.5)
+         << ", \"eye_illuminance_lx_max\": " << percentile(eyeLux, 1.0)
+         << ", \"veiling_luminance_cd_m2_max\": " << percentile(veiling, 1.0);
+  }
+  json << ", \"airlight\": \"" << toString(cfg->effects.render.airlight) << "\"}\n";
   return 0;
 }
 

@@ -269,6 +269,8 @@ int run(const ServeOptions& o) {
   if (cfg.surface != "cpu") {
     if (auto g = GlSurfacePass::create()) gl = std::move(g).value();
     else if (cfg.surface == "gl") return fail(g.error().message);
+    else if (cfg.effects.render.airlight == AirlightDevice::Gpu)
+      return fail("[render] airlight = \"gpu\" needs the GL surface pass: " + g.error().message);
     else spdlog::warn("serve: GL unavailable ({}); CPU planes only (no glTF)", g.error().message);
   }
   std::vector<std::unique_ptr<plugin::ChannelRenderer>> renderers;

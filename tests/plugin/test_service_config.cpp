@@ -1,7 +1,9 @@
 // The service configuration: the built-in default, layering (built-in < file < --set), every
 // section's keys, errors with file and line, and --print-config output that loads back the same.
 #include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/plugin/service_config.hpp>
+#include <fogbeam/scene/scene.hpp>
 
 #include <gtest/gtest.h>
 
@@ -109,7 +111,25 @@ intensity_cd = 5.0
 
 TEST(ServiceConfig, PrintedConfigLoadsBackTheSame) {
   TempDir d;
-  auto a = loadServiceConfig("", {"timing.rate_hz=45", "render.subsampling=false"});
+  // Every issue 7 key away from its default, and a traffic lamp with an aperture.
+  const std::string layer = d.write("fx.toml", R"(
+[[traffic_class]]
+class = 0
+[[traffic_class.lamp]]
+role = "low-beam"
+name = "left low beam"
+position_m = [3.7, 0.7, 0.65]
+profile = "spot"
+intensity_cd = 20000.0
+inner_deg = 4.0
+outer_deg = 14.0
+aperture = "rectangle"
+aperture_size_m = [0.25, 0.1]
+aperture_samples = 2
+)");
+  auto a = loadServiceConfig(layer, {"timing.rate_hz=45", "render.subsampling=false", "glow.enabled=true",
+                                     "glow.fade_in=3.5", "glare.age_years=67", "glare.pigmentation=0.25",
+                                     "render.airlight=\"gpu\"", "render.gpu_pieces=32"});
   ASSERT_TRUE(a) << a.error().message;
   const std::string printed = toToml(*a);
   const std::string file = d.write("printed.toml", printed);
@@ -118,6 +138,72 @@ TEST(ServiceConfig, PrintedConfigLoadsBackTheSame) {
   EXPECT_EQ(toToml(*b).substr(toToml(*b).find("[world]")), printed.substr(printed.find("[world]")));
   EXPECT_DOUBLE_EQ(b->rate_hz, 45.0);
   EXPECT_FALSE(b->subsampling);
+  EXPECT_TRUE(b->effects.glow.enabled);
+  EXPECT_DOUBLE_EQ(b->effects.glow.fade_in, 3.5);
+  EXPECT_TRUE(b->effects.glare.enabled);  // --set glare.age_years alone turns glare on, as the table would
+  EXPECT_DOUBLE_EQ(b->effects.glare.age_years, 67.0);
+  EXPECT_DOUBLE_EQ(b->effects.glare.pigmentation, 0.25);
+  EXPECT_EQ(b->effects.render.airlight, AirlightDevice::Gpu);
+  EXPECT_EQ(b->effects.render.gpu_pieces, 32);
+  const RigLamp& l = b->rigFor(0)->lamps.at(0);
+  EXPECT_EQ(l.lamp.aperture.shape, ApertureShape::Rectangle);
+  EXPECT_DOUBLE_EQ(l.lamp.aperture.width_m, 0.25);
+  EXPECT_DOUBLE_EQ(l.lamp.aperture.height_m, 0.1);
+  EXPECT_EQ(l.lamp.aperture.samples, 2);
+}
+
+TEST(ServiceConfig, EffectsAreOffByDefaultAndMergeKeyByKey) {
+  auto c = loadServiceConfig("", {});
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_FALSE(c->effects.glow.enabled);
+  EXPECT_FALSE(c->effects.glare.enabled);
+  EXPECT_EQ(c->effects.render.airlight, AirlightDevice::Cpu);
+  // The service's defaults are the scene's (effects.hpp).
+  EXPECT_DOUBLE_EQ(c->effects.glow.fade_in, GlowOptions{}.fade_in);
+  EXPECT_DOUBLE_EQ(c->effects.glare.age_years, GlareOptions{}.age_years);
+  EXPECT_DOUBLE_EQ(c->effects.glare.pigmentation, GlareOptions{}.pigmentation);
+  EXPECT_EQ(c->effects.render.gpu_pieces, RenderSettings{}.gpu_pieces);
+
+  TempDir d;
+  const std::string file = d.write("old_driver.toml", "[glare]\nage_years = 70.0\npigmentation = 0.9\n");
+  auto m = loadServiceConfig(file, {"glare.pigmentation=0.1", "glow.enabled=true"});
+  ASSERT_TRUE(m) << m.error().message;
+  EXPECT_TRUE(m->effects.glare.enabled);                  // the file's table turns it on
+  EXPECT_DOUBLE_EQ(m->effects.glare.age_years, 70.0);     // kept from the file under the --set
+  EXPECT_DOUBLE_EQ(m->effects.glare.pigmentation, 0.1);   // --set over the file
+  EXPECT_TRUE(m->effects.glow.enabled);
+  EXPECT_DOUBLE_EQ(m->effects.glow.fade_in, 2.0);
+  auto off = loadServiceConfig(file, {"glare.enabled=false"});
+  ASSERT_TRUE(off) << off.error().message;
+  EXPECT_FALSE(off->effects.glare.enabled);
+  EXPECT_DOUBLE_EQ(off->effects.glare.age_years, 70.0);
+}
+
+// The service reads [render] airlight and gpu_pieces itself (its [render] table also holds the
+// service's keys, which config::parseRenderSettings would reject): it must accept exactly what a
+// scene file accepts.
+TEST(ServiceConfig, RenderKeysTakeTheSceneFilesValues) {
+  const std::string sceneFile = std::string(FOGBEAM_TEST_DATA_DIR) + "/scenes/serve_world.toml";
+  auto sceneText = readTextFile(sceneFile);
+  ASSERT_TRUE(sceneText) << sceneText.error().message;
+  for (const std::string value : {"3", "4", "64", "1024", "1025", "0", "-8", "12.5", "\"64\""}) {
+    auto scene = parseScene(*sceneText + "\n[render]\ngpu_pieces = " + value + "\n", "scene.toml",
+                            fs::path(sceneFile).parent_path().string());
+    auto service = loadServiceConfig("", {"render.gpu_pieces=" + value});
+    EXPECT_EQ(scene.has_value(), service.has_value()) << "gpu_pieces = " << value;
+    if (scene && service) {
+      EXPECT_EQ(scene->effects.render.gpu_pieces, service->effects.render.gpu_pieces);
+    }
+  }
+  for (const std::string value : {"\"cpu\"", "\"gpu\"", "\"GPU\"", "\"vulkan\"", "1"}) {
+    auto scene = parseScene(*sceneText + "\n[render]\nairlight = " + value + "\n", "scene.toml",
+                            fs::path(sceneFile).parent_path().string());
+    auto service = loadServiceConfig("", {"render.airlight=" + value});
+    EXPECT_EQ(scene.has_value(), service.has_value()) << "airlight = " << value;
+    if (scene && service) {
+      EXPECT_EQ(scene->effects.render.airlight, service->effects.render.airlight);
+    }
+  }
 }
 
 TEST(ServiceConfig, ErrorsNameTheLayerLineAndKey) {
@@ -155,6 +241,32 @@ TEST(ServiceConfig, ErrorsNameTheLayerLineAndKey) {
   EXPECT_NE(errorOf("", {"rate"}).find("expected key.path=value"), std::string::npos);
   EXPECT_NE(errorOf("[status]\nudp_port = 47800\n").find("[status] udp_port equals [input.udp] port 47800"),
             std::string::npos);
+
+  // Issue 7: [glow], [glare], [render] airlight / gpu_pieces, rig lamp apertures.
+  auto expectError = [&](const std::string& text, const std::vector<std::string>& set, const std::string& want) {
+    const std::string got = errorOf(text, set);
+    EXPECT_NE(got.find(want), std::string::npos) << "expected: " << want << "\ngot: " << got;
+  };
+  expectError("[glow]\nenabled = true\nfade_in = 0.5\n", {}, "bad.toml:3: [glow] fade_in: expected a number >= 1.1, found 0.5");
+  expectError("[glare]\nage_years = 30\npigmentation = 1.5\n", {},
+              "bad.toml:3: [glare] pigmentation: expected a number in [0, 1], found 1.5");
+  expectError("[glare]\nage_yeras = 30\n", {}, "bad.toml:2: [glare]: unknown key 'age_yeras' (did you mean 'age_years'?)");
+  expectError("", {"glare.age_years=150"}, "--set glare.age_years=150:1: [glare] age_years: expected a number in [0, 120]");
+  expectError("", {"glow.enabled=1"}, "--set glow.enabled=1:1: [glow] enabled: expected");
+  expectError("[render]\nmethod = \"accurate\"\nairlight = \"vulkan\"\n", {},
+              "bad.toml:3: [render] airlight: expected \"cpu\" or \"gpu\", found \"vulkan\"");
+  expectError("", {"render.gpu_pieces=2048"}, "--set render.gpu_pieces=2048:1: [render] gpu_pieces: expected an integer in [4, 1024]");
+  expectError("[render]\ngpu_piece = 8\n", {}, "bad.toml:2: [render]: unknown key 'gpu_piece' (did you mean 'gpu_pieces'?)");
+  expectError("[render]\nairlight = \"gpu\"\nsurface = \"cpu\"\n", {},
+              "[render] airlight = \"gpu\" needs the GL surface pass, but surface = \"cpu\"");
+  expectError("[render]\nairlight = \"gpu\"\n", {"render.method=\"seed\""},
+              "[render] airlight = \"gpu\" computes the accurate method, but method = \"seed\"");
+  expectError("[[traffic_class]]\nclass = 0\n[[traffic_class.lamp]]\nrole = \"low-beam\"\nposition_m = [1, 0, 0]\n"
+              "profile = \"isotropic\"\nintensity_cd = 1\naperture = \"disc\"\naperture_size_m = [0.1, 0.1]\n",
+              {}, "bad.toml:9: [[traffic_class]] #1 [[lamp]] #1 aperture_size_m: expected the diameter");
+  expectError("[[traffic_class]]\nclass = 0\n[[traffic_class.lamp]]\nrole = \"low-beam\"\nposition_m = [1, 0, 0]\n"
+              "profile = \"isotropic\"\nintensity_cd = 1\naperture_samples = 4\n",
+              {}, "aperture_samples: only allowed with aperture = \"rectangle\" or \"disc\"");
 }
 
 }  // namespace

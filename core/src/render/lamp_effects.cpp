@@ -175,6 +175,10 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   t.glow.clear();
   t.glare.clear();
   const double q = std::clamp(meanCosine(fog.phase), 0.0, 0.99);
+  // The single-scattering table of the frame's phase function (the fog may change between
+  // frames): IsoTable::get returns the cached one while the phase stays (a map look-up), and
+  // builds a new one (~0.2 s) when it changes.
+  if (glow_.enabled) t.iso = kernels::IsoTable::get(fog.phase);
 
   // The scene may hold more lamps than at build() (traffic arriving): they start switched on;
   // the buffers grow only then, so a steady scene allocates nothing per frame.
@@ -209,13 +213,24 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     const double illuminance = intensity * std::exp(-kt * R) / (R * R);  // profile's, lux
     rep.intensity_cd = luminous * intensity;
     rep.eye_illuminance_lx = luminous * illuminance;
-    // Hidden: its image is in the frame and the surface there is nearer than the lamp.
+    // Hidden: its image is in the frame and the surfaces there are nearer than the lamp. The
+    // 2 × 2 pixels around the image point are read, and one that reaches the lamp keeps it
+    // visible: a distant lamp is smaller than a pixel, whose centre ray may meet the road just
+    // in front of it (at 104 m a 320 px wide, 60° view's pixel spans 0.34 m, half a low beam's
+    // height above the road), and a single pixel made lamps flicker between hidden and seen.
     bool visible = eCam.x > 0.0;
     if (visible) {
       const double x = c.x - f * eCam.y / eCam.x, y = c.y - f * eCam.z / eCam.x;
       if (x >= 0.0 && y >= 0.0 && x < cam.width && y < cam.height) {
-        const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(cam.width) + static_cast<std::size_t>(x);
-        visible = !(static_cast<double>(surface.distance[k]) < 0.98 * R);
+        const int i0 = std::clamp(static_cast<int>(std::floor(x - 0.5)), 0, cam.width - 1);
+        const int j0 = std::clamp(static_cast<int>(std::floor(y - 0.5)), 0, cam.height - 1);
+        bool reaches = false;
+        for (int j = j0; j <= std::min(j0 + 1, cam.height - 1); ++j)
+          for (int i = i0; i <= std::min(i0 + 1, cam.width - 1); ++i) {
+            const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(cam.width) + static_cast<std::size_t>(i);
+            reaches = reaches || !(static_cast<double>(surface.distance[k]) < 0.98 * R);
+          }
+        visible = reaches;
       }
     }
     rep.visible = visible && intensity > 0.0;

@@ -7,6 +7,12 @@
 // their class's rig; the world scene adds world lamps, planes and glTF. Surfaces (GL or CPU),
 // airlight (the configured method; ego lamps through view tables), composite, pack.
 //
+// Issue 7 additions, each from the service config ([render] airlight, [glow], [glare]):
+//  * airlight = "gpu": the GL surface pass computes the accurate airlight of every lit lamp in
+//    the same draw as the surfaces (GlSurfacePass::setAirlight); no CPU tables, no table waits.
+//  * glow and glare (LampEffects) of the lamps that are on, per frame, on the airlight's pool.
+//  * rig lamps with an aperture become their point lamps once placed (expandRig, placeRigPoint).
+//
 // Tables that depend on the fog and on the ego lamps' bending angle (quantised to
 // kBendingStepDeg) take seconds to build. With `wait` = false (free-running service) a change
 // starts a build on a background thread and frames go on with the previous fog and bending until
@@ -20,6 +26,7 @@
 #include <fogbeam/ipc/state_store.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 #include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
@@ -44,12 +51,36 @@ struct RenderedFrame {
   std::size_t traffic_evaluated = 0;   ///< pixels of the traffic layer evaluated (0: no traffic lamps)
   bool pending = false;            ///< a fog or bending change is still being tabulated
   double table_wait_ms = 0.0;      ///< time this frame waited for tables (wait = true)
+  /// Glow and glare figures of the lamps that are on (LampEffectsReport: per lamp, eye
+  /// illuminance in lx, veiling luminance at the image centre in cd/m², glow and glare
+  /// seconds). Empty and 0 when [glow] and [glare] are both off.
+  LampEffectsReport effects;
+  double effects_ms = 0.0;         ///< wall time of glow + glare, ms (0 when both are off)
 };
+
+/// One point lamp of a rig lamp, in the vehicle frame: a rig lamp without an aperture is one
+/// point, one with an aperture its expandSceneLamp points ("name [k/N]", colour × weight).
+struct RigPoint {
+  SceneLamp lamp;            ///< vehicle frame, aperture Point
+  std::size_t rig_lamp = 0;  ///< the index in VehicleRig::lamps of the lamp it belongs to
+};
+
+/// Every lamp of `rig` as its point lamps, rig order (the points of a lamp consecutive).
+[[nodiscard]] std::vector<RigPoint> expandRig(const VehicleRig& rig);
+
+/// `point` (of rig lamp `lamp`) at a vehicle pose: world position origin_m + worldFromVehicle ·
+/// p, orientation worldFromVehicle · worldFromLamp. `bend` (a rotation about the vehicle's z,
+/// or null) swivels it about the vertical axis through its rig lamp's centre, as it swivels the
+/// whole lamp, so that a lamp's face turns with it. The mount is left as the rig's (Vehicle).
+[[nodiscard]] SceneLamp placeRigPoint(const RigPoint& point, const RigLamp& lamp, const Mat3& worldFromVehicle,
+                                      const Vec3& origin_m, const Mat3* bend);
 
 class ChannelRenderer {
  public:
   /// `world`: the world scene (its world lamps, planes, glTF; camera and vehicle lamps unused).
   /// `gl`: a surface pass to use (shared by the channels of one thread), or null for CPU planes.
+  /// With [render] airlight = "gpu" the pass is required (an error without it) and its airlight
+  /// stage is switched on here.
   [[nodiscard]] static Result<std::unique_ptr<ChannelRenderer>> create(const ServiceConfig& config, std::size_t channel,
                                                                        const Scene& world, GlSurfacePass* gl);
   ~ChannelRenderer();

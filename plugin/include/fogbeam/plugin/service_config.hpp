@@ -12,6 +12,7 @@
 
 #include <fogbeam/ipc/can_config.hpp>
 #include <fogbeam/physics/medium.hpp>
+#include <fogbeam/scene/effects.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
@@ -27,7 +28,10 @@ namespace fogbeam::plugin {
 
 /// A lamp of a vehicle rig, in the vehicle frame.
 struct RigLamp {
-  SceneLamp lamp;          ///< mount is Vehicle; pose relative to the vehicle reference point
+  /// mount is Vehicle; pose relative to the vehicle reference point. `lamp.aperture` (keys
+  /// aperture, aperture_size_m, aperture_samples) is kept as written: the frame renderer expands
+  /// the lamp into its point lamps once it is placed (expandRig in frame_renderer.hpp).
+  SceneLamp lamp;
   std::string role;        ///< "low-beam", "high-beam", "front-fog", "rear-fog", "position", "brake", "drl", "always"
   std::uint32_t light_bit = 0;  ///< ipc::light bit that switches it; 0 = always on
   bool bending = false;    ///< swivels about the vehicle's z with the host's bending angle (ego only)
@@ -72,6 +76,10 @@ struct ServiceConfig {
   std::string moving_lamps = "pencil";  ///< traffic and world lamps: "pencil" | "per-ray" (MovingLampPath)
   std::string surface = "auto";
   unsigned threads = 0;
+
+  /// [render] airlight, gpu_pieces; [glow]; [glare]: the scene's tables (docs/scene.md), all
+  /// off and the CPU airlight by default.
+  SceneEffects effects;
 
   // [timing]
   bool lock_step = false;
@@ -127,7 +135,7 @@ struct ServiceConfig {
 [[nodiscard]] Result<ServiceConfig> loadServiceConfig(const std::string& file, const std::vector<std::string>& settings);
 
 /// Cross-key checks (unique channel names, overlay format needs no exposure, a rig for class 0,
-/// a CAN source with its mapping …).
+/// a CAN source with its mapping, the GPU airlight with a GL surface and the accurate method …).
 [[nodiscard]] Status validate(const ServiceConfig& config);
 
 /// The effective configuration as TOML (every key, resolved paths), for --print-config.
