@@ -171,21 +171,6 @@ VehicleRig parseRig(const Section& s, const std::string& baseDir, bool ego) {
   return rig;
 }
 
-/// [render] airlight and gpu_pieces, the scene's [render] keys (config::renderKeys(),
-/// docs/scene.md), each keeping the lower layer's value when left out. Not through
-/// config::parseRenderSettings: it rejects every key but its own, and this table also holds the
-/// service's. The choices and the range are the scene's (core/src/scene/effects.cpp);
-/// ServiceConfig.RenderKeysTakeTheSceneFilesValues checks both against a scene file so that the
-/// two cannot drift apart.
-constexpr std::array<std::string_view, 2> kAirlightDevices{"cpu", "gpu"};
-constexpr std::int64_t kGpuPiecesMin = 4, kGpuPiecesMax = 1024;
-
-void parseAirlightDevice(const Section& s, RenderSettings& r) {
-  r.airlight = s.choice("airlight", kAirlightDevices, toString(r.airlight)) == "gpu" ? AirlightDevice::Gpu
-                                                                                      : AirlightDevice::Cpu;
-  r.gpu_pieces = static_cast<int>(s.integer("gpu_pieces", kGpuPiecesMin, kGpuPiecesMax, r.gpu_pieces));
-}
-
 void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& name, const std::string& baseDir) {
   const Section top(name, root, "");
   top.checkKeys(kTopKeys);
@@ -205,7 +190,8 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
   }
   if (const toml::table* t = top.optTable("render")) {
     const Section s(name, *t, "[render]");
-    s.checkKeys(kRenderKeys, config::renderKeys());
+    // airlight and gpu_pieces: the scene's [render] keys, parsed by the scene's code.
+    c.effects.render = config::parseRenderSettings(s, c.effects.render, kRenderKeys);
     const std::array<std::string_view, 3> methods{"accurate", "seed", "reference"};
     c.method = s.choice("method", methods, c.method);
     c.subsampling = s.boolean("subsampling", c.subsampling);
@@ -215,25 +201,15 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
     c.surface = s.choice("surface", surfaces, c.surface);
     c.threads = static_cast<unsigned>(s.integer("threads", 0, 256, c.threads));
-    parseAirlightDevice(s, c.effects.render);
   }
   // [glow] and [glare]: the scene's tables, parsed by the scene's code. As in a scene file the
   // table's presence turns its effect on unless it says `enabled = false`; its other keys keep
   // the lower layer's value when left out (so `--set glare.age_years=60` turns glare on, for a
   // 60-year-old driver).
-  if (const toml::table* t = top.optTable("glow")) {
-    const Section s(name, *t, "[glow]");
-    const GlowOptions g = config::parseGlow(s);
-    c.effects.glow.enabled = g.enabled;
-    if (s.find("fade_in")) c.effects.glow.fade_in = g.fade_in;
-  }
-  if (const toml::table* t = top.optTable("glare")) {
-    const Section s(name, *t, "[glare]");
-    const GlareOptions g = config::parseGlare(s);
-    c.effects.glare.enabled = g.enabled;
-    if (s.find("age_years")) c.effects.glare.age_years = g.age_years;
-    if (s.find("pigmentation")) c.effects.glare.pigmentation = g.pigmentation;
-  }
+  if (const toml::table* t = top.optTable("glow"))
+    c.effects.glow = config::parseGlow(Section(name, *t, "[glow]"), c.effects.glow);
+  if (const toml::table* t = top.optTable("glare"))
+    c.effects.glare = config::parseGlare(Section(name, *t, "[glare]"), c.effects.glare);
   if (const toml::table* t = top.optTable("timing")) {
     const Section s(name, *t, "[timing]");
     s.checkKeys(kTimingKeys);

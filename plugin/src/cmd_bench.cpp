@@ -182,15 +182,20 @@ struct Evaluators {
   AirlightImageEvaluator reference, seed, accurate;
 };
 
-// One image size: every figure of the table, as JSON (the table is printed from it).
-json benchSize(Scene scene, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
-               GlSurfacePass* gl, GlAirlightPass* glAir) {
-  // An off-axis scene camera keeps its frustum: the principal point scales with the image.
+/// The scene at another image size (an off-axis camera keeps its frustum).
+Scene resized(Scene scene, int width, int height) {
   if (scene.camera.principal_px)
     *scene.camera.principal_px *= Vec2(static_cast<double>(width) / scene.camera.width,
                                        static_cast<double>(height) / scene.camera.height);
   scene.camera.width = width;
   scene.camera.height = height;
+  return scene;
+}
+
+// One image size: every figure of the table, as JSON (the table is printed from it).
+json benchSize(const Scene& original, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
+               GlSurfacePass* gl, GlAirlightPass* glAir) {
+  const Scene scene = resized(original, width, height);
   const Camera& cam = scene.camera;
   const std::size_t nPixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
   json r;
@@ -632,16 +637,6 @@ void printSize(const json& r) {
       std::printf(" = accurate %.1fx %s", rm["speed_ratio"].get<double>(), rm["matched_accurate_p95"].get<bool>() ? "faster" : "faster (lower bound)");
     std::printf("\n");
   }
-}
-
-/// The scene at another image size (an off-axis camera keeps its frustum).
-Scene resized(Scene scene, int width, int height) {
-  if (scene.camera.principal_px)
-    *scene.camera.principal_px *= Vec2(static_cast<double>(width) / scene.camera.width,
-                                       static_cast<double>(height) / scene.camera.height);
-  scene.camera.width = width;
-  scene.camera.height = height;
-  return scene;
 }
 
 std::vector<double> luminances(const std::vector<float>& rgb) {

@@ -38,27 +38,27 @@ std::span<const KeySpec> glowKeys() { return kGlowKeys; }
 std::span<const KeySpec> glareKeys() { return kGlareKeys; }
 std::span<const KeySpec> renderKeys() { return kRenderKeys; }
 
-GlowOptions parseGlow(const Section& s) {
+GlowOptions parseGlow(const Section& s, const GlowOptions& fallback) {
   s.checkKeys(kGlowKeys);
-  GlowOptions g;
+  GlowOptions g = fallback;
   g.enabled = s.boolean("enabled", true);
   g.fade_in = s.number("fade_in", Range{Apsf::minOpticalDistance(), kInf, false, false}, g.fade_in);
   return g;
 }
 
-GlareOptions parseGlare(const Section& s) {
+GlareOptions parseGlare(const Section& s, const GlareOptions& fallback) {
   s.checkKeys(kGlareKeys);
-  GlareOptions g;
+  GlareOptions g = fallback;
   g.enabled = s.boolean("enabled", true);
   g.age_years = s.number("age_years", Range{0.0, 120.0, false, false}, g.age_years);
   g.pigmentation = s.number("pigmentation", kUnit, g.pigmentation);
   return g;
 }
 
-RenderSettings parseRenderSettings(const Section& s) {
-  s.checkKeys(kRenderKeys);
-  RenderSettings r;
-  r.airlight = s.choice("airlight", kDevices, "cpu") == "gpu" ? AirlightDevice::Gpu : AirlightDevice::Cpu;
+RenderSettings parseRenderSettings(const Section& s, const RenderSettings& fallback, std::span<const KeySpec> extraKeys) {
+  s.checkKeys(kRenderKeys, extraKeys);
+  RenderSettings r = fallback;
+  r.airlight = s.choice("airlight", kDevices, toString(r.airlight)) == "gpu" ? AirlightDevice::Gpu : AirlightDevice::Cpu;
   r.gpu_pieces = static_cast<int>(s.integer("gpu_pieces", 4, 1024, r.gpu_pieces));
   return r;
 }

@@ -181,12 +181,17 @@ class ProfileCache {
 
 /// The [glow], [glare] and [render] tables (fogbeam/scene/effects.hpp; docs/scene.md), shared by
 /// scene files and service configs. parseEffects reads whichever of the three `top` holds.
+/// A key left out keeps its value in `fallback` (a service layer's lower layers), except
+/// `enabled`: a [glow] or [glare] table turns its effect on unless it says `enabled = false`.
+/// parseRenderSettings accepts `extraKeys` too and leaves them to the caller (the service's
+/// [render] holds its own keys beside these).
 [[nodiscard]] std::span<const KeySpec> glowKeys();
 [[nodiscard]] std::span<const KeySpec> glareKeys();
 [[nodiscard]] std::span<const KeySpec> renderKeys();
-[[nodiscard]] GlowOptions parseGlow(const Section& s);
-[[nodiscard]] GlareOptions parseGlare(const Section& s);
-[[nodiscard]] RenderSettings parseRenderSettings(const Section& s);
+[[nodiscard]] GlowOptions parseGlow(const Section& s, const GlowOptions& fallback = {});
+[[nodiscard]] GlareOptions parseGlare(const Section& s, const GlareOptions& fallback = {});
+[[nodiscard]] RenderSettings parseRenderSettings(const Section& s, const RenderSettings& fallback = {},
+                                                 std::span<const KeySpec> extraKeys = {});
 [[nodiscard]] SceneEffects parseEffects(const Section& top);
 
 /// Runs `parse` on the TOML text and turns every failure (TOML syntax, ConfigError, allocation)
