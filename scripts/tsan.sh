@@ -9,9 +9,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 cmake --preset tsan >/dev/null
-cmake --build build/tsan --target fogbeam_ipc_tests fogbeam -j "$(nproc)"
+cmake --build build/tsan --target fogbeam_ipc_tests fogbeam_service_tests fogbeam -j "$(nproc)"
 export TSAN_OPTIONS="suppressions=$PWD/tests/tsan.supp halt_on_error=1 second_deadlock_stack=1"
-build/tsan/tests/fogbeam_ipc_tests --gtest_filter='StateStore*:UdpReceiver*:ShmChannel*:CanInput*:EndToEnd*:HostDepth*'
+build/tsan/tests/fogbeam_ipc_tests --gtest_filter='StateStore*:UdpReceiver*:ShmChannel*:CanInput*'
+build/tsan/tests/fogbeam_service_tests --gtest_filter='EndToEnd*:HostDepth*'
 /usr/bin/python3 tests/reliability/tsan_serve.py build/tsan/plugin/fogbeam tests/data/service/timing.toml \
   tests/data/scenarios/soak.toml tests/data/can/mapping.toml ipc/python 6
 echo "tsan: state store, UDP receiver, CAN input, shm channel and end-to-end tests and the serve frame loop clean under ThreadSanitizer"

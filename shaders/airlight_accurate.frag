@@ -5,7 +5,7 @@
 // through the CPU. The CPU twin is AirlightEvaluator (core/src/physics/airlight.cpp, method
 // Accurate); the G moments are the same table (AirlightOptions), uploaded in float.
 //
-// Per pixel and lamp (Lecocq et al. 2001, eq. 3; notation of shared/docs/physics.md):
+// Per pixel and lamp (Lecocq et al. 2001, eq. 3; notation of docs/physics.md):
 //   L = Ω K_t e^{−K_t p} / h · ∫_{θ0}^{θd} G(k, θ) I(w(θ)) dθ,   k = K_t h,
 //   w(θ) = cos θ · n + sin θ · ω,  θ0 = atan(−p/h),  θd = atan((d − p)/h) (π/2 for the sky).
 // Product integration, as the CPU: G is integrated exactly through the cumulative moments

@@ -1,6 +1,6 @@
 // fogbeam — the CAN mapping table (fogbeam/ipc/can_config.hpp).
 #include <fogbeam/ipc/can_config.hpp>
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/util/files.hpp>
 
 #include <toml++/toml.h>
 

@@ -6,9 +6,9 @@
 // id, '#' data, "#R[len]" remote, "##<flags>" CAN FD, "_<dlc>" raw classic DLC, '.' byte
 // separators).
 #include <fogbeam/ipc/candump.hpp>
+#include <fogbeam/util/files.hpp>
 #include <fogbeam/util/text_scan.hpp>
 
-#include <fogbeam/physics/photometry_io.hpp>  // readTextFile
 
 #include <algorithm>
 #include <chrono>

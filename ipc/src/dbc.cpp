@@ -9,9 +9,9 @@
 // other statement is skipped (a string in a skipped statement may span lines, e.g. CM_
 // comments). Nothing is returned until the whole file has been read and checked.
 #include <fogbeam/ipc/dbc.hpp>
+#include <fogbeam/util/files.hpp>
 #include <fogbeam/util/text_scan.hpp>
 
-#include <fogbeam/physics/photometry_io.hpp>  // readTextFile
 
 #include <algorithm>
 #include <array>

@@ -1,7 +1,7 @@
 // fogbeam — scenario files, trajectories and their evaluation (scenario.hpp, docs/scenario.md).
-#include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/plugin/scenario.hpp>
-#include <fogbeam/scene/toml_config.hpp>
+#include <fogbeam/scene/sections.hpp>
+#include <fogbeam/util/files.hpp>
 #include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>
@@ -169,8 +169,8 @@ ScenarioVehicle parseVehicle(const Section& s, bool ego, const std::string& base
   const bool fromCsv = s.find("csv") != nullptr;
   if (fromCsv) {
     if (s.find("key")) s.failAt(*s.find("key"), "key", "give keyframes or csv, not both");
-    const std::string path = config::resolvePath(baseDir, s.string("csv", "a path"));
-    if (std::string problem = config::checkFile(path); !problem.empty()) s.failAt(*s.find("csv"), "csv", problem);
+    const std::string path = resolvePath(baseDir, s.string("csv", "a path"));
+    if (std::string problem = checkFile(path); !problem.empty()) s.failAt(*s.find("csv"), "csv", problem);
     auto it = csvCache.find(path);
     if (it == csvCache.end()) {
       auto text = readTextFile(path);
@@ -198,7 +198,7 @@ ScenarioVehicle parseVehicle(const Section& s, bool ego, const std::string& base
       k.checkKeys(kPoseKeyKeys);
       PoseKey p;
       p.t_s = k.number("t_s", config::kAnyFinite);
-      p.position_m = k.vec3("position_m");
+      p.position_m = vec3(k, "position_m");
       if (auto y = k.optNumber("yaw_deg", config::kAnyFinite)) {
         p.yaw_deg = *y;
         ++withYaw;
@@ -232,8 +232,8 @@ Scenario parseRoot(const toml::table& root, const std::string& name, const std::
   sc.source = name;
   sc.name = top.optString("name").value_or(fs::path(name).stem().string());
   sc.description = top.optString("description").value_or("");
-  sc.scene_path = config::resolvePath(baseDir, top.string("scene", "a path to a scene file"));
-  if (std::string problem = config::checkFile(sc.scene_path); !problem.empty()) {
+  sc.scene_path = resolvePath(baseDir, top.string("scene", "a path to a scene file"));
+  if (std::string problem = checkFile(sc.scene_path); !problem.empty()) {
     top.failAt(*top.find("scene"), "scene", problem);
   }
   sc.duration_s = top.number("duration_s", config::kPositive);

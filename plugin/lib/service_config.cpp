@@ -1,8 +1,8 @@
 // fogbeam — the service configuration (service_config.hpp, docs/service.md).
 #include <fogbeam/ipc/protocol.hpp>
-#include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/plugin/service_config.hpp>
-#include <fogbeam/scene/toml_config.hpp>
+#include <fogbeam/scene/sections.hpp>
+#include <fogbeam/util/files.hpp>
 
 #include <algorithm>
 #include <array>
@@ -122,9 +122,9 @@ constexpr std::array<std::pair<std::string_view, std::uint32_t>, 8> kRoles{{
 std::string pathOf(const Section& s, std::string_view key, const std::string& baseDir, bool mustExist) {
   const std::string given = s.string(key, "a path");
   if (given.empty()) return {};
-  const std::string path = config::resolvePath(baseDir, given);
+  const std::string path = resolvePath(baseDir, given);
   if (mustExist) {
-    if (std::string problem = config::checkFile(path); !problem.empty()) s.failAt(*s.find(key), key, problem);
+    if (std::string problem = checkFile(path); !problem.empty()) s.failAt(*s.find(key), key, problem);
   }
   return path;
 }
@@ -138,7 +138,7 @@ std::string definitionOf(const toml::table& t, const std::string& baseDir) {
   toml::table copy = t;
   if (const auto* p = copy.get_as<std::string>("profile")) {
     const std::string v = p->get();
-    if (v != "isotropic" && v != "spot") copy.insert_or_assign("profile", config::resolvePath(baseDir, v));
+    if (v != "isotropic" && v != "spot") copy.insert_or_assign("profile", resolvePath(baseDir, v));
   }
   std::ostringstream out;
   out << toml::toml_formatter(copy);
@@ -277,7 +277,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
         ch.height = cam->height;
         ch.frustum_deg = std::array<double, 4>{(*f)[0], (*f)[1], (*f)[2], (*f)[3]};
       }
-      ch.eye_offset_m = s.optVec3("eye_offset_m").value_or(ch.eye_offset_m);
+      ch.eye_offset_m = optVec3(s, "eye_offset_m").value_or(ch.eye_offset_m);
       ch.yaw_deg = s.number("yaw_deg", config::kAnyFinite, 0.0);
       ch.pitch_deg = s.number("pitch_deg", config::kAnyFinite, 0.0);
       ch.roll_deg = s.number("roll_deg", config::kAnyFinite, 0.0);
@@ -294,7 +294,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
   if (const toml::table* t = top.optTable("ego")) {
     const Section s(name, *t, "[ego]");
     s.checkKeys(kEgoKeys);
-    c.eye_m = s.optVec3("eye_m").value_or(c.eye_m);
+    c.eye_m = optVec3(s, "eye_m").value_or(c.eye_m);
     c.bending_max_deg = s.number("bending_max_deg", Range{0.0, 45.0}, c.bending_max_deg);
     if (s.find("lamp")) c.ego = parseRig(s, baseDir, true);
     c.ego.name = "ego";

@@ -6,12 +6,12 @@
 #include <fogbeam/physics/airlight_vectors.hpp>
 #include <fogbeam/physics/aperture.hpp>
 #include <fogbeam/physics/glow.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/validation.hpp>
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/render/surface.hpp>
-#include <fogbeam/physics/photometry_io.hpp>
-#include <fogbeam/physics/validation.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -291,7 +291,7 @@ void addValidateCommand(CLI::App& app, int& exitCode) {
       "misses its bounds (p95 <= 0.5 %, max <= 2 %), 2 on bad input.");
   sub->add_option("--vectors", opts->vectors,
                   "CSV of rays, lamps and fogs with expected airlight (cd/m2), columns as "
-                  "shared/reference/airlight_vectors.csv; lengths in m, angles in degrees, extinction in 1/m. "
+                  "tests/data/airlight_vectors.csv; lengths in m, angles in degrees, extinction in 1/m. "
                   "Without it, a built-in sweep is evaluated against the reference method.")
       ->check(CLI::ExistingFile);
   sub->add_option("--out", opts->out, "write one row per case and method: method,row,value,expected,rel_error "

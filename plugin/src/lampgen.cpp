@@ -3,9 +3,11 @@
 //
 //   fogbeam_lampgen --out-dir config/lamps     regenerate the files
 //   fogbeam_lampgen --check config/lamps       exit 1 naming the first file that differs
+#include <fogbeam/physics/ies_writer.hpp>
+#include <fogbeam/util/files.hpp>
+
 #include "lamp_models.hpp"
 
-#include <fogbeam/physics/photometry_io.hpp>
 
 #include <CLI/CLI.hpp>
 

@@ -1,6 +1,7 @@
 // libFuzzer target (issue 6): EULUMDAT photometric files (physics/photometry_io.hpp).
 // Built by the fuzz preset (clang, -fsanitize=fuzzer,address,undefined); run by scripts/fuzz.sh.
-#include <fogbeam/physics/photometry_io.hpp>
+
+#include <fogbeam/physics/eulumdat.hpp>
 
 #include <cstddef>
 #include <cstdint>

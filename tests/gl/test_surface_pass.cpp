@@ -3,6 +3,7 @@
 // with the reason; set FOGBEAM_REQUIRE_GL=1 to turn such a skip into a failure (GPU CI).
 // On failure the GL and expected images are written as PFM next to each other in the build dir.
 #include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/physics/profile.hpp>
 #include <fogbeam/render/surface.hpp>
 

@@ -2,7 +2,8 @@
 // test_csv_profile.cpp, test_photometry_io.cpp).
 #pragma once
 
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/eulumdat.hpp>
+#include <fogbeam/physics/ies.hpp>
 #include <fogbeam/physics/profile.hpp>
 
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
-// The 400 shared reference vectors (shared/reference/airlight_vectors.csv, copied to
-// tests/data): adaptive quadrature at ~1e-9, cross-checked by a volumetric path tracer.
+// The 400 reference vectors shipped in tests/data/airlight_vectors.csv: adaptive quadrature
+// at ~1e-9, cross-checked by a volumetric path tracer (docs/physics.md, "Test oracles").
 #include <fogbeam/physics/airlight_vectors.hpp>
 
 #include <gtest/gtest.h>

@@ -3,7 +3,6 @@
 // the aperture (the Reference method at 24 × 24 points of the face).
 #include <fogbeam/physics/aperture.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
-#include <fogbeam/scene/scene.hpp>
 
 #include <gtest/gtest.h>
 
@@ -172,26 +171,6 @@ TEST(ApertureLamps, ShareTheProfileLieOnTheFaceAndSumToTheLampsIntensity) {
   ASSERT_EQ(one.size(), 1u);
   EXPECT_EQ(one[0].position_m, lamp.position_m);
   EXPECT_EQ(one[0].color, lamp.color);
-}
-
-TEST(ApertureLamps, SceneLampsExpandWithNumberedNames) {
-  SceneLamp sl;
-  sl.name = "ego left low beam";
-  sl.mount = LampMount::Vehicle;
-  sl.lamp.profile = makeProfile(IsotropicProfile{100.0}).value();
-  sl.aperture = Aperture{ApertureShape::Rectangle, 0.2, 0.1, 3};
-  const std::vector<SceneLamp> points = expandSceneLamp(sl);
-  ASSERT_EQ(points.size(), 9u);
-  EXPECT_EQ(points[0].name, "ego left low beam [1/9]");
-  EXPECT_EQ(points[8].name, "ego left low beam [9/9]");
-  for (const SceneLamp& p : points) {
-    EXPECT_EQ(p.mount, LampMount::Vehicle);
-    EXPECT_EQ(p.aperture.shape, ApertureShape::Point);
-  }
-  sl.aperture = Aperture{};
-  const std::vector<SceneLamp> same = expandSceneLamp(sl);
-  ASSERT_EQ(same.size(), 1u);
-  EXPECT_EQ(same[0].name, sl.name);
 }
 
 // ---- Airlight near the lamp against the reference quadrature over the aperture ------------------

@@ -2,7 +2,7 @@
 // directive, ';' separators with decimal commas, and the error messages.
 #include "photometry_test_util.hpp"
 
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/csv_profile.hpp>
 #include <fogbeam/physics/profile.hpp>
 
 #include <gtest/gtest.h>

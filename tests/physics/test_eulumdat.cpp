@@ -3,7 +3,7 @@
 // messages for malformed input (built by editing single lines of a valid file).
 #include "photometry_test_util.hpp"
 
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/eulumdat.hpp>
 #include <fogbeam/physics/profile.hpp>
 
 #include <gtest/gtest.h>

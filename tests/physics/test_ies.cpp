@@ -5,7 +5,7 @@
 // compute the expectations by hand (see the comments next to each check).
 #include "photometry_test_util.hpp"
 
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/ies.hpp>
 #include <fogbeam/physics/profile.hpp>
 
 #include <gtest/gtest.h>

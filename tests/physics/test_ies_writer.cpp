@@ -1,6 +1,7 @@
 // writeIes: LM-63-2002 output that parseIes reads back to the same profile (1e-6 relative),
 // with the required keywords, short lines and no exponent notation.
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/physics/ies.hpp>
+#include <fogbeam/physics/ies_writer.hpp>
 #include <fogbeam/physics/profile.hpp>
 
 #include <gtest/gtest.h>

@@ -1,9 +1,9 @@
 // The service configuration: the built-in default, layering (built-in < file < --set), every
 // section's keys, errors with file and line, and --print-config output that loads back the same.
 #include <fogbeam/ipc/protocol.hpp>
-#include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 #include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/files.hpp>
 
 #include <gtest/gtest.h>
 

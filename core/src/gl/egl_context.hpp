@@ -3,7 +3,7 @@
 
 #include "gl_headers.hpp"
 
-#include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/gl/options.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <memory>

@@ -11,7 +11,7 @@
 
 #include "egl_context.hpp"
 #include "gl_headers.hpp"
-#include <fogbeam/gl/gltf_mesh.hpp>
+#include <fogbeam/scene/gltf_mesh.hpp>
 #include "shader_library.hpp"
 
 #include <glm/gtc/type_ptr.hpp>
@@ -202,13 +202,13 @@ struct GlSurfacePass::Impl {
     glGenBuffers(1, &meshVbo);
     glBindVertexArray(meshVao);
     glBindBuffer(GL_ARRAY_BUFFER, meshVbo);
-    constexpr auto stride = static_cast<GLsizei>(sizeof(gl::MeshVertex));
+    constexpr auto stride = static_cast<GLsizei>(sizeof(MeshVertex));
     glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(gl::MeshVertex, position)));
+    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, position)));
     glEnableVertexAttribArray(1);
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(gl::MeshVertex, normal)));
+    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, normal)));
     glEnableVertexAttribArray(2);
-    glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(gl::MeshVertex, reflectance)));
+    glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, reflectance)));
     glBindVertexArray(0);
 
     glGenBuffers(1, &lampSsbo);
@@ -275,12 +275,12 @@ struct GlSurfacePass::Impl {
     meshVertexCount = 0;
     meshPath.reset();
     if (!scene.gltf_path) return Ok{};
-    auto mesh = gl::loadGltfMesh(*scene.gltf_path);
+    auto mesh = loadGltfMesh(*scene.gltf_path);
     if (!mesh) return mesh.error();
     if (mesh->vertices.size() > static_cast<std::size_t>(std::numeric_limits<GLsizei>::max()))
       return Error{*scene.gltf_path + ": too many triangles"};
     glBindBuffer(GL_ARRAY_BUFFER, meshVbo);
-    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh->vertices.size() * sizeof(gl::MeshVertex)),
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(mesh->vertices.size() * sizeof(MeshVertex)),
                  mesh->vertices.data(), GL_STATIC_DRAW);
     meshVertexCount = static_cast<GLsizei>(mesh->vertices.size());
     meshAnchor_m = mesh->anchor_m;

@@ -146,7 +146,7 @@ Result<AirlightEvaluator> AirlightEvaluator::build(const Lamp& lamp, const Mediu
   e.method_ = method;
   e.options_ = options;
   e.lampFromWorld_ = glm::transpose(lamp.worldFromLamp);
-  auto tables = std::make_shared<Tables>();
+  auto tables = std::make_shared<detail::AirlightTables>();
   double seconds = 0.0;
   if (method == AirlightMethod::Accurate) {
     const PhaseKey key = phaseKey(medium.phase, options.g_table_theta, options.g_table_k, options.g_table_k_max);

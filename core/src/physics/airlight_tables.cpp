@@ -1,5 +1,7 @@
 #include "airlight_tables.hpp"
 
+#include <fogbeam/physics/airlight.hpp>  // integrandG
+
 #include <boost/math/quadrature/gauss.hpp>
 
 #include <algorithm>

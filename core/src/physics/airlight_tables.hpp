@@ -10,7 +10,9 @@
 //    the lamp's direction sphere, the seed's "precomputed tables" (Lecocq et al. 2001).
 #pragma once
 
-#include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/math.hpp>
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/physics/profile.hpp>
 
 #include <array>
 #include <memory>
@@ -104,16 +106,12 @@ class GreatCircleMoments {
   std::vector<double> data_;  // rows of nPhi_ × 3 cumulative values
 };
 
-}  // namespace fogbeam::detail
-
-namespace fogbeam {
-
-// The tables an evaluator holds (shared with other evaluators of the same fog or profile).
-struct AirlightEvaluator::Tables {
-  std::shared_ptr<const detail::GMomentTable> g;
-  std::shared_ptr<const detail::SeedCoefficients> seed;
-  std::shared_ptr<const detail::GreatCircleMoments> circles;
+/// The tables an AirlightEvaluator holds (shared with other evaluators of the same fog or
+/// profile); which are set depends on the method.
+struct AirlightTables {
+  std::shared_ptr<const GMomentTable> g;
+  std::shared_ptr<const SeedCoefficients> seed;
+  std::shared_ptr<const GreatCircleMoments> circles;
 };
 
-}  // namespace fogbeam
-
+}  // namespace fogbeam::detail

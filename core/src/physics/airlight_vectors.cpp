@@ -1,5 +1,5 @@
 #include <fogbeam/physics/airlight_vectors.hpp>
-#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/util/files.hpp>
 
 #include <charconv>
 #include <cmath>

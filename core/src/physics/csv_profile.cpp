@@ -17,8 +17,9 @@
 // Symmetry: a grid that starts at H = 0 may be a genuinely one-sided measurement, so it is
 // not mirrored by guesswork. Only the directive "# symmetry: mirror-h" mirrors
 // (I(−H, V) = I(H, V); the first H angle must then be 0); "# symmetry: none" is the default.
-#include <fogbeam/physics/photometry_io.hpp>
 
+#include <fogbeam/physics/csv_profile.hpp>
+#include <fogbeam/util/files.hpp>
 #include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>

@@ -29,8 +29,9 @@
 //  * Numeric fields may use a decimal comma ("12,5"), as European writers do. Text fields
 //    may be empty. Lines may end in "\r\n". Trailing blank lines are fine; anything else
 //    after the intensities means the counts were wrong and is an error.
-#include <fogbeam/physics/photometry_io.hpp>
 
+#include <fogbeam/physics/eulumdat.hpp>
+#include <fogbeam/util/files.hpp>
 #include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>

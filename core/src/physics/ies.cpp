@@ -39,8 +39,9 @@
 //      0–90 (the lower half is then not covered and reads 0 cd).
 //  * Anything left after the last candela value is an error (the counts were wrong), except
 //    blanks and the DOS end-of-file mark Ctrl-Z.
-#include <fogbeam/physics/photometry_io.hpp>
 
+#include <fogbeam/physics/ies.hpp>
+#include <fogbeam/util/files.hpp>
 #include <fogbeam/util/text_scan.hpp>
 
 #include <algorithm>

@@ -10,7 +10,8 @@
 //   horizontal angle, every numeric line shorter than 80 characters (the format allows 256).
 // Lines end with '\n' (LM-63 names CR LF; every reader we know accepts both, and a plain
 // newline keeps files stable in git on every platform).
-#include <fogbeam/physics/photometry_io.hpp>
+
+#include <fogbeam/physics/ies_writer.hpp>
 
 #include <algorithm>
 #include <array>

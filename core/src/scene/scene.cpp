@@ -4,11 +4,12 @@
 // its type, unit, default and range (Mitsuba style: one place, next to the parser). A key
 // that is not in its table is an error, never ignored.
 //
-// Errors read "file:line: [section] key: expected …, found …" (toml_config.hpp, shared with
-// the scenario and service-config parsers, which embed [fog] and lamp tables).
-#include <fogbeam/physics/photometry_io.hpp>
+// Errors read "file:line: [section] key: expected …, found …" (util/toml_section.hpp); the [fog]
+// and lamp tables are read by scene/sections.hpp, shared with the scenario and service-config
+// parsers, which embed them.
 #include <fogbeam/scene/scene.hpp>
-#include <fogbeam/scene/toml_config.hpp>
+#include <fogbeam/scene/sections.hpp>
+#include <fogbeam/util/files.hpp>
 
 #include <array>
 #include <cstdint>
@@ -101,8 +102,8 @@ Camera parseFrustumCamera(const Section& s, const toml::node& node) {
 
 Camera parseCamera(const Section& s) {
   s.checkKeys(kCameraKeys);
-  const Vec3 position = s.vec3("position_m");
-  const Mat3 orientation = s.orientation();
+  const Vec3 position = vec3(s, "position_m");
+  const Mat3 worldFromCamera = orientation(s);
   Camera c;
   if (const toml::node* frustum = s.find("frustum_deg")) {
     if (const toml::node* fov = s.find("fov_x_deg"))
@@ -116,15 +117,15 @@ Camera parseCamera(const Section& s) {
     c.height = static_cast<int>(s.integer("height", 1, kMaxImageSide));
   }
   c.position_m = position;
-  c.worldFromCamera = orientation;
+  c.worldFromCamera = worldFromCamera;
   return c;
 }
 
 Plane parsePlane(const Section& s) {
   s.checkKeys(kPlaneKeys);
   Plane pl;
-  pl.point_m = s.vec3("point_m");
-  const Vec3 n = s.vec3("normal");
+  pl.point_m = vec3(s, "point_m");
+  const Vec3 n = vec3(s, "normal");
   if (!(glm::length(n) > 0.0)) s.failAt(*s.find("normal"), "normal", "expected a non-zero vector, found [0, 0, 0]");
   pl.normal = glm::normalize(n);
   pl.reflectance = s.number("reflectance", kUnit, kDefaultReflectance);

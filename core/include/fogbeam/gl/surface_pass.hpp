@@ -18,6 +18,7 @@
 // used from separate threads.
 #pragma once
 
+#include <fogbeam/gl/options.hpp>
 #include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
@@ -29,19 +30,6 @@
 #include <vector>
 
 namespace fogbeam {
-
-/// How the EGL display is chosen.
-enum class GlPlatform {
-  Auto,         ///< a hardware EGL device (EGL_EXT_platform_device) if one exists, else Mesa surfaceless, else any device
-  Surfaceless,  ///< EGL_MESA_platform_surfaceless (Mesa; llvmpipe where no GPU is present)
-  Device,       ///< EGL_EXT_platform_device with EGL_EXT_device_enumeration, device `device_index`
-};
-
-struct GlOptions {
-  GlPlatform platform = GlPlatform::Auto;
-  int device_index = 0;     ///< Device only: index into eglQueryDevicesEXT's list
-  bool debug_context = false;  ///< request a debug context and log GL debug messages to stderr
-};
 
 /// Timings of the latest render(), milliseconds.
 /// The GPU airlight stage (issue 7): the accurate airlight method per pixel in a fragment shader

@@ -38,6 +38,10 @@
 
 namespace fogbeam {
 
+namespace detail {
+struct AirlightTables;  // core/src/physics/airlight_tables.hpp
+}
+
 /// A point lamp in the world frame.
 struct Lamp {
   Vec3 position_m{0.0};
@@ -106,8 +110,6 @@ class AirlightEvaluator {
   [[nodiscard]] const Lamp& lamp() const noexcept { return lamp_; }
   [[nodiscard]] const Medium& medium() const noexcept { return medium_; }
 
-  struct Tables;  // private, defined in the implementation
-
  private:
   friend class PencilAirlight;  // shares the accurate method's G-moment table
   AirlightEvaluator() = default;
@@ -116,7 +118,7 @@ class AirlightEvaluator {
   AirlightMethod method_ = AirlightMethod::Reference;
   AirlightOptions options_;
   Mat3 lampFromWorld_{1.0};
-  std::shared_ptr<const Tables> tables_;
+  std::shared_ptr<const detail::AirlightTables> tables_;
   TableStats stats_;
 };
 

@@ -1,5 +1,5 @@
-// fogbeam — test vectors for the airlight evaluators, in the column layout of
-// shared/reference/airlight_vectors.csv:
+// fogbeam — test vectors for the airlight evaluators, in the column layout of the reference
+// vectors shipped in tests/data/airlight_vectors.csv (docs/physics.md, "Test oracles"):
 //   eye_x,eye_y,eye_z,dir_x,dir_y,dir_z,depth_m,lamp_x,lamp_y,lamp_z,axis_x,axis_y,axis_z,
 //   profile,intensity_cd,inner_deg,outer_deg,extinction_per_m,albedo,phase,g,
 //   airlight_cd_m2,abs_err_estimate

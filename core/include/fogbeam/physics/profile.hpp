@@ -156,8 +156,4 @@ class Profile {
 /// Validates and wraps a model (computes cached properties).
 [[nodiscard]] Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model);
 
-/// Loads a profile from a file, picking the parser from the extension:
-/// .ies (IES LM-63), .ldt (EULUMDAT), .csv (H–V grid). Errors name file, line and field.
-[[nodiscard]] Result<std::shared_ptr<const Profile>> loadProfileFile(const std::string& path);
-
 }  // namespace fogbeam

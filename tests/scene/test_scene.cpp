@@ -1,7 +1,7 @@
 #include <fogbeam/physics/math.hpp>
 #include <fogbeam/physics/medium.hpp>
-#include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/files.hpp>
 
 #include <gtest/gtest.h>
 
@@ -607,6 +607,27 @@ TEST(SceneEffects, NewKeysAreDocumented) {
   for (const char* key : {"[glow]", "fade_in", "[glare]", "age_years", "pigmentation", "[render]", "airlight",
                           "gpu_pieces", "aperture", "aperture_size_m", "aperture_samples"})
     EXPECT_PRED2(Contains, doc.value(), "`" + std::string(key) + "`");
+}
+
+// A lamp with a face (physics/aperture.hpp) as the scene expands it into named point lamps.
+TEST(ApertureLamps, SceneLampsExpandWithNumberedNames) {
+  SceneLamp sl;
+  sl.name = "ego left low beam";
+  sl.mount = LampMount::Vehicle;
+  sl.lamp.profile = makeProfile(IsotropicProfile{100.0}).value();
+  sl.aperture = Aperture{ApertureShape::Rectangle, 0.2, 0.1, 3};
+  const std::vector<SceneLamp> points = expandSceneLamp(sl);
+  ASSERT_EQ(points.size(), 9u);
+  EXPECT_EQ(points[0].name, "ego left low beam [1/9]");
+  EXPECT_EQ(points[8].name, "ego left low beam [9/9]");
+  for (const SceneLamp& p : points) {
+    EXPECT_EQ(p.mount, LampMount::Vehicle);
+    EXPECT_EQ(p.aperture.shape, ApertureShape::Point);
+  }
+  sl.aperture = Aperture{};
+  const std::vector<SceneLamp> same = expandSceneLamp(sl);
+  ASSERT_EQ(same.size(), 1u);
+  EXPECT_EQ(same[0].name, sl.name);
 }
 
 }  // namespace

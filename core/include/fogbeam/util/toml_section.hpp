@@ -1,7 +1,8 @@
 // fogbeam — typed, checked access to TOML configuration files, shared by every file format
-// fogbeam reads: scene files (docs/scene.md), scenarios (docs/scenario.md) and the service
-// config (docs/service.md). Scenario and service files embed scene sections ([fog], lamps), so
-// those are parsed here once, by the same code and with the same messages.
+// fogbeam reads: scene files (docs/scene.md), scenarios (docs/scenario.md), the service config
+// (docs/service.md) and the CAN mapping (docs/can.md). Generic: it knows TOML tables, keys,
+// numbers and ranges, nothing of scenes (the scene sections those formats embed, [fog] and
+// lamps, are fogbeam/scene/sections.hpp).
 //
 // Errors read "file:line: [section] key: expected …, found …". A failure is thrown as
 // ConfigError from inside a parser so that the checks read as straight-line code; every public
@@ -11,10 +12,6 @@
 // Thread-safety: plain functions and values; a Section refers to a table it does not own.
 #pragma once
 
-#include <fogbeam/physics/math.hpp>
-#include <fogbeam/physics/medium.hpp>
-#include <fogbeam/physics/profile.hpp>
-#include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <toml++/toml.h>
@@ -22,12 +19,11 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
-#include <map>
-#include <memory>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace fogbeam::config {
 
@@ -103,9 +99,6 @@ class Section {
   [[nodiscard]] std::optional<bool> optBoolean(std::string_view key) const;
   [[nodiscard]] bool boolean(std::string_view key, bool fallback) const { return optBoolean(key).value_or(fallback); }
 
-  /// [x, y, z]: an array of exactly three numbers, each within `r`.
-  [[nodiscard]] std::optional<Vec3> optVec3(std::string_view key, const Range& r = kAnyFinite) const;
-  [[nodiscard]] Vec3 vec3(std::string_view key, const Range& r = kAnyFinite) const;
   /// An array of exactly `n` numbers, each within `r`.
   [[nodiscard]] std::optional<std::vector<double>> optNumbers(std::string_view key, std::size_t n,
                                                               const Range& r = kAnyFinite) const;
@@ -121,9 +114,6 @@ class Section {
   /// A sub-table, or nullptr when absent; an error when the key holds something else.
   [[nodiscard]] const toml::table* optTable(std::string_view key) const;
   [[nodiscard]] const toml::table& requiredTable(std::string_view key) const;
-
-  /// worldFromBody from yaw_deg, pitch_deg, roll_deg (each default 0).
-  [[nodiscard]] Mat3 orientation() const;
 
   /// Calls f(table, label, ordinal from 1) for each table of the array of tables `key`
   /// ([[lamp]], [[channel]] …); nothing when the key is absent.
@@ -147,52 +137,6 @@ class Section {
   const toml::table& table_;
   std::string label_;
 };
-
-/// `relative` resolved against `baseDir` (unless absolute or baseDir is empty), normalised.
-[[nodiscard]] std::string resolvePath(const std::string& baseDir, const std::string& relative);
-/// Empty when `path` names a readable regular file, else what is wrong with it.
-[[nodiscard]] std::string checkFile(const std::string& path);
-
-/// Profiles loaded while reading one file, so that lamps with equal parameters (the same file
-/// and scale, the same spot) share one Profile and hence one set of airlight tables.
-class ProfileCache {
- public:
-  using Ptr = std::shared_ptr<const Profile>;
-  /// A closed-form model; `key` identifies its parameters exactly.
-  Result<Ptr> model(const std::string& key, Profile::Model m);
-  /// A profile file (already resolved and checked to exist), every candela value × scale.
-  Result<Ptr> file(const std::string& path, double scale);
-
- private:
-  std::map<std::string, Ptr> files_;  // resolved path → unscaled profile
-  std::map<std::string, Ptr> byKey_;
-};
-
-/// The keys of a scene [fog] table and of a lamp table (docs/scene.md).
-[[nodiscard]] std::span<const KeySpec> fogKeys();
-[[nodiscard]] std::span<const KeySpec> lampKeys();
-
-/// A [fog] table (docs/scene.md). `extraKeys` are accepted and left to the caller.
-[[nodiscard]] Medium parseFog(const Section& s, std::span<const KeySpec> extraKeys = {});
-/// A lamp table (docs/scene.md [[lamp]]); `ordinal` names unnamed lamps "lamp[N]"; profile
-/// paths resolve against `baseDir`. `extraKeys` are accepted and left to the caller.
-[[nodiscard]] SceneLamp parseLamp(const Section& s, std::size_t ordinal, const std::string& baseDir,
-                                  ProfileCache& cache, std::span<const KeySpec> extraKeys = {});
-
-/// The [glow], [glare] and [render] tables (fogbeam/scene/effects.hpp; docs/scene.md), shared by
-/// scene files and service configs. parseEffects reads whichever of the three `top` holds.
-/// A key left out keeps its value in `fallback` (a service layer's lower layers), except
-/// `enabled`: a [glow] or [glare] table turns its effect on unless it says `enabled = false`.
-/// parseRenderSettings accepts `extraKeys` too and leaves them to the caller (the service's
-/// [render] holds its own keys beside these).
-[[nodiscard]] std::span<const KeySpec> glowKeys();
-[[nodiscard]] std::span<const KeySpec> glareKeys();
-[[nodiscard]] std::span<const KeySpec> renderKeys();
-[[nodiscard]] GlowOptions parseGlow(const Section& s, const GlowOptions& fallback = {});
-[[nodiscard]] GlareOptions parseGlare(const Section& s, const GlareOptions& fallback = {});
-[[nodiscard]] RenderSettings parseRenderSettings(const Section& s, const RenderSettings& fallback = {},
-                                                 std::span<const KeySpec> extraKeys = {});
-[[nodiscard]] SceneEffects parseEffects(const Section& top);
 
 /// Runs `parse` on the TOML text and turns every failure (TOML syntax, ConfigError, allocation)
 /// into an Error naming `name`: the entry point of each file format.

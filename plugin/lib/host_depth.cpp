@@ -1,13 +1,13 @@
-#include <fogbeam/ipc/host_depth.hpp>
+#include <fogbeam/plugin/host_depth.hpp>
 #include <fogbeam/ipc/shm_layout.h>
 
 #include <cmath>
 #include <cstring>
 
-namespace fogbeam::ipc {
+namespace fogbeam::plugin {
 
 Result<std::unique_ptr<HostDepthInput>> HostDepthInput::attach(const std::string& channel) {
-  auto r = ShmReader::attach(channel);
+  auto r = ipc::ShmReader::attach(channel);
   if (!r) return r.error();
   if ((*r)->format() != FOGBEAM_FORMAT_DISTANCE_F32)
     return Error{"shm channel '" + channel + "' is not a host depth channel (format " +
@@ -17,14 +17,14 @@ Result<std::unique_ptr<HostDepthInput>> HostDepthInput::attach(const std::string
   return in;
 }
 
-ReadStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) {
-  FrameMeta m;
-  const ReadStatus s = reader_->latest(m, bytes_);
-  if (s != ReadStatus::Ok) return s;
+ipc::ReadStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) {
+  ipc::FrameMeta m;
+  const ipc::ReadStatus s = reader_->latest(m, bytes_);
+  if (s != ipc::ReadStatus::Ok) return s;
   const int w = static_cast<int>(reader_->width()), h = static_cast<int>(reader_->height());
   if (!(m.fov_x_deg > 0.0f && m.fov_x_deg < 180.0f)) {
     lastError_ = "host depth: fov_x_deg " + std::to_string(m.fov_x_deg) + " outside (0, 180)";
-    return ReadStatus::WriterGone;
+    return ipc::ReadStatus::WriterGone;
   }
   Camera cam;
   cam.width = w;
@@ -36,7 +36,7 @@ ReadStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) {
       lastError_ = "host depth: fov_y_deg " + std::to_string(m.fov_y_deg) + " does not match square pixels (" +
                    std::to_string(implied * 180.0 / kPi) + " deg for " + std::to_string(w) + "x" + std::to_string(h) +
                    "); asymmetric or non-square frusta are not supported yet";
-      return ReadStatus::WriterGone;
+      return ipc::ReadStatus::WriterGone;
     }
   }
   cam.position_m = Vec3(m.position_m[0], m.position_m[1], m.position_m[2]);
@@ -50,7 +50,7 @@ ReadStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) {
   std::fill(surface.rgb.begin(), surface.rgb.end(), 0.0f);
   std::memcpy(surface.distance.data(), bytes_.data(), surface.distance.size() * sizeof(float));
   lastError_.clear();
-  return ReadStatus::Ok;
+  return ipc::ReadStatus::Ok;
 }
 
-}  // namespace fogbeam::ipc
+}  // namespace fogbeam::plugin

@@ -9,7 +9,7 @@
 // textures, metallic/roughness and vertex colours are ignored. Primitives without normals get
 // flat (per-triangle) normals. Only TRIANGLES (mode 4) are drawn; POINTS/LINES are skipped,
 // strips and fans are converted. No GL here: plain data, testable anywhere; it is its own library
-// (fogbeam_gltf, no GL or EGL), so that the fuzz target `gltf` can run it without a GL context.
+// (fogbeam_gltf, no GL or EGL; it sits with the scene because a scene names its glTF), so that the fuzz target `gltf` can run it without a GL context.
 #pragma once
 
 #include <fogbeam/physics/math.hpp>
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-namespace fogbeam::gl {
+namespace fogbeam {
 
 struct MeshVertex {
   float position[3];     ///< m, fogbeam world frame, relative to MeshData::anchor_m
@@ -44,4 +44,4 @@ struct MeshData {
 /// them in errors. Reads no file: buffers must be data: URIs or the GLB's own chunk.
 [[nodiscard]] Result<MeshData> loadGltfMeshFromMemory(std::span<const unsigned char> bytes, const std::string& what);
 
-}  // namespace fogbeam::gl
+}  // namespace fogbeam

@@ -1,7 +1,7 @@
 // Host depth input: a host publishes distances and its camera with the C SDK; fogbeam reads
 // them as a camera and a distance buffer.
 #include <fogbeam/fogbeam_host.h>
-#include <fogbeam/ipc/host_depth.hpp>
+#include <fogbeam/plugin/host_depth.hpp>
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace fogbeam::ipc {
+namespace fogbeam::plugin {
 namespace {
 
 TEST(HostDepth, CameraAndDistancesArriveAsPublished) {
@@ -23,7 +23,7 @@ TEST(HostDepth, CameraAndDistancesArriveAsPublished) {
   ASSERT_TRUE(in) << in.error().message;
   HostView view;
   SurfaceBuffers surf;
-  EXPECT_EQ((*in)->latest(view, surf), ReadStatus::NoFrame);
+  EXPECT_EQ((*in)->latest(view, surf), ipc::ReadStatus::NoFrame);
   std::vector<float> d(40 * 20);
   for (std::size_t i = 0; i < d.size(); ++i) d[i] = 1.0f + static_cast<float>(i);
   d[0] = std::numeric_limits<float>::infinity();
@@ -35,7 +35,7 @@ TEST(HostDepth, CameraAndDistancesArriveAsPublished) {
   cam.yaw_deg = 90.0f;
   cam.fov_x_deg = 60.0f;
   ASSERT_EQ(fogbeam_depth_publish(w, d.data(), &cam), FOGBEAM_OK);
-  ASSERT_EQ((*in)->latest(view, surf), ReadStatus::Ok) << (*in)->lastError();
+  ASSERT_EQ((*in)->latest(view, surf), ipc::ReadStatus::Ok) << (*in)->lastError();
   EXPECT_EQ(view.frame, 9u);
   EXPECT_EQ(view.camera.width, 40);
   EXPECT_NEAR(view.camera.fov_x, radians(60.0), 1e-12);
@@ -46,18 +46,18 @@ TEST(HostDepth, CameraAndDistancesArriveAsPublished) {
   EXPECT_EQ(surf.distance, d);
   cam.fov_y_deg = 50.0f;  // not square pixels for 40x20 at 60° horizontal
   ASSERT_EQ(fogbeam_depth_publish(w, d.data(), &cam), FOGBEAM_OK);
-  EXPECT_EQ((*in)->latest(view, surf), ReadStatus::WriterGone);
+  EXPECT_EQ((*in)->latest(view, surf), ipc::ReadStatus::WriterGone);
   EXPECT_NE((*in)->lastError().find("does not match square pixels"), std::string::npos) << (*in)->lastError();
   fogbeam_depth_destroy(w);
 }
 
 TEST(HostDepth, AFrameChannelIsNotADepthChannel) {
   const std::string ch = "test-notdepth-" + std::to_string(::getpid());
-  ShmChannelOptions o;
+  ipc::ShmChannelOptions o;
   o.channel = ch;
   o.width = 8;
   o.height = 8;
-  auto w = ShmWriter::create(o);
+  auto w = ipc::ShmWriter::create(o);
   ASSERT_TRUE(w);
   auto in = HostDepthInput::attach(ch);
   ASSERT_FALSE(in);
@@ -65,4 +65,4 @@ TEST(HostDepth, AFrameChannelIsNotADepthChannel) {
 }
 
 }  // namespace
-}  // namespace fogbeam::ipc
+}  // namespace fogbeam::plugin

@@ -1,4 +1,4 @@
-#include <fogbeam/gl/gltf_mesh.hpp>
+#include <fogbeam/scene/gltf_mesh.hpp>
 
 #include <fogbeam/util/tiny_gltf.hpp>
 
@@ -10,7 +10,7 @@
 #include <cstring>
 #include <limits>
 
-namespace fogbeam::gl {
+namespace fogbeam {
 
 namespace {
 
@@ -288,4 +288,4 @@ Result<MeshData> meshFromModel(const tinygltf::Model& model, const std::string& 
 
 }  // namespace
 
-}  // namespace fogbeam::gl
+}  // namespace fogbeam

@@ -1,0 +1,2 @@
+// ipc may use util only.
+#include <fogbeam/render/frame.hpp>
