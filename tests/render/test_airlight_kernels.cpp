@@ -51,7 +51,8 @@ TEST(AirlightKernels, CumulativeMatchesEvaluateAtEveryDistance) {
     auto ref = AirlightEvaluator::build(lamp, fog(0.85), AirlightMethod::Reference);
     ASSERT_TRUE(ref.has_value());
     for (int n = 0; n < 20; ++n) {
-      const Ray ray{{0.0, 0.35, 1.2}, glm::normalize(Vec3(1.0, 0.4 * u(rng), 0.2 * u(rng))), 0.0};
+      const double vz = u(rng), vy = u(rng);  // one draw each, in a defined order (not within one call)
+      const Ray ray{{0.0, 0.35, 1.2}, glm::normalize(Vec3(1.0, 0.4 * vy, 0.2 * vz)), 0.0};
       std::vector<double> cum(dist.size());
       ev->evaluateCumulative(ray, dist.data(), dist.size(), cum.data());
       for (std::size_t m = 0; m < dist.size(); ++m) {
@@ -85,7 +86,8 @@ TEST(AirlightKernels, IsoTableMatchesAccurateEvaluator) {
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     std::vector<double> rel;
     for (int n = 0; n < 400; ++n) {
-      const Vec3 dir = glm::normalize(Vec3(1.0, 0.6 * u(rng), 0.35 * u(rng)));
+      const double vz = u(rng), vy = u(rng);  // one draw each, in a defined order (not within one call)
+      const Vec3 dir = glm::normalize(Vec3(1.0, 0.6 * vy, 0.35 * vz));
       const double d = n % 4 == 0 ? kInf : 5.0 + 60.0 * (1.0 + u(rng));
       const Ray ray{{0.0, 0.0, 1.2}, dir, d};
       const double want = ev->evaluate(ray);

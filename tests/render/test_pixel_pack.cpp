@@ -46,7 +46,10 @@ TEST(PixelPack, SimdPackerMatchesScalarOnEveryTarget) {
   std::uniform_real_distribution<float> u(-12.0f, 12.0f);
   const std::size_t n = 1027;
   std::vector<float> rgb(3 * n), alpha(n);
-  for (float& v : rgb) v = std::exp2(u(rng)) * (u(rng) < 0 ? -1.0f : 1.0f);
+  for (float& v : rgb) {
+    const float sign = u(rng), magnitude = u(rng);  // one draw each, in a defined order
+    v = std::exp2(magnitude) * (sign < 0 ? -1.0f : 1.0f);
+  }
   for (float& v : alpha) v = std::exp2(u(rng) / 4.0f) - 1.0f;
   rgb[0] = std::numeric_limits<float>::infinity();
   rgb[4] = 1e-7f;  // a subnormal half
