@@ -450,7 +450,8 @@ std::vector<config::KeyTable> serviceConfigKeyTables() {
 
 std::vector<config::KeyTable> configKeyTables() {
   std::vector<config::KeyTable> all = config::sceneKeyTables();
-  for (const std::vector<config::KeyTable>& more : {scenarioKeyTables(), serviceConfigKeyTables()}) {
+  for (const std::vector<config::KeyTable>& more :
+       {scenarioKeyTables(), serviceConfigKeyTables(), ipc::canConfigKeyTables()}) {
     all.insert(all.end(), more.begin(), more.end());
   }
   return all;

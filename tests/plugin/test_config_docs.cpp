@@ -24,7 +24,7 @@ namespace fogbeam::plugin {
 namespace {
 
 /// The pages whose key tables the registry binds: each format's own page.
-constexpr std::array<std::string_view, 3> kFormatDocs{"scene.md", "scenario.md", "service.md"};
+constexpr std::array<std::string_view, 4> kFormatDocs{"scene.md", "scenario.md", "service.md", "can.md"};
 
 std::string docsPath(std::string_view doc) { return std::string(FOGBEAM_CONFIG_DIR) + "/../docs/" + std::string(doc); }
 

@@ -151,8 +151,9 @@ struct ServiceConfig {
 
 /// Every key table of every format fogbeam reads, the one registry the docs check walks
 /// (tests/plugin/test_config_docs.cpp): the scene's (config::sceneKeyTables()), the scenario's
-/// (scenarioKeyTables()) and the service config's (serviceConfigKeyTables()). Here because
-/// the service config embeds or names every other format. Reentrant.
+/// (scenarioKeyTables()), the service config's (serviceConfigKeyTables()) and the CAN
+/// mapping's (ipc::canConfigKeyTables()). Here because the service config embeds or names every
+/// other format. Reentrant.
 [[nodiscard]] std::vector<config::KeyTable> configKeyTables();
 
 }  // namespace fogbeam::plugin
