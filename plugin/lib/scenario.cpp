@@ -62,6 +62,7 @@ constexpr std::array<std::pair<std::string_view, std::uint32_t>, 9> kLightNames{
 }};
 
 // ---- The keys -------------------------------------------------------------------------------
+// Names only: each key's description is its row in docs/scenario.md (scenarioKeyTables()).
 
 constexpr std::array kTopKeys{
     KeySpec{"name"},

@@ -15,6 +15,7 @@ namespace fogbeam::config {
 
 namespace {
 
+// Names only: each key's description is its row in docs/scene.md (sceneKeyTables()).
 constexpr std::array kFogKeys{
     KeySpec{"extinction_per_m"},
     KeySpec{"visibility_m"},
