@@ -1,117 +1,112 @@
-// fogbeam — the CAN mapping table (fogbeam/ipc/can_config.hpp).
+// fogbeam — the CAN mapping table (fogbeam/ipc/can_config.hpp), read with the generic TOML
+// access of every configuration format (util/toml_section.hpp), so that its errors read like
+// theirs: "file:line: [table] key: expected …, found …", unknown keys with a "did you mean".
 #include <fogbeam/ipc/can_config.hpp>
 #include <fogbeam/util/files.hpp>
+#include <fogbeam/util/toml_section.hpp>
 
-#include <toml++/toml.h>
-
+#include <algorithm>
 #include <array>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <span>
+#include <string>
+#include <vector>
 
 namespace fogbeam::ipc {
 
 namespace {
 
-constexpr std::array<std::string_view, kCanLampCount> kLampKeys{"low_beam",  "high_beam",      "front_fog",
-                                                                "rear_fog",  "indicator_left", "indicator_right"};
+using config::KeySpec;
+using config::Section;
 
-std::size_t lineOf(const toml::node& n) { return static_cast<std::size_t>(n.source().begin.line); }
+// ---- The keys: each one's description is its row in docs/can.md -------------------------------
 
-struct Reader {
-  const std::string& file;
-  Error at(const toml::node& n, const std::string& what) const { return fileError(file, lineOf(n), what); }
-  Error at(std::size_t line, const std::string& what) const { return fileError(file, line, what); }
+constexpr std::array kTopKeys{
+    KeySpec{"dbc"},
+    KeySpec{"hold_s"},
+    KeySpec{"fallback"},
+    KeySpec{"speed"},
+    KeySpec{"lamps"},
+};
+/// The lamps a mapping can drive, in CanLamp order: the index of a name is its lamp.
+constexpr std::array<KeySpec, kCanLampCount> kLampKeys{
+    KeySpec{"low_beam"},
+    KeySpec{"high_beam"},
+    KeySpec{"front_fog"},
+    KeySpec{"rear_fog"},
+    KeySpec{"indicator_left"},
+    KeySpec{"indicator_right"},
+};
+/// A signal reference { message = "…", signal = "…" }: each [lamps] entry, and `speed`.
+constexpr std::array kSignalKeys{
+    KeySpec{"message"},
+    KeySpec{"signal"},
+};
+/// What `speed` adds to a signal reference.
+constexpr std::array kSpeedExtraKeys{
+    KeySpec{"to_m_s"},
 };
 
-// { message = "…", signal = "…" } (plus `extra` keys allowed).
-Result<CanSignalRef> signalRef(const Reader& r, const toml::node& n, const std::string& key,
-                               std::initializer_list<std::string_view> extra = {}) {
-  const auto* t = n.as_table();
-  if (!t) return r.at(n, key + ": expected a table { message = \"…\", signal = \"…\" }");
-  for (const auto& [k, v] : *t) {
-    const std::string_view name = k.str();
-    if (name == "message" || name == "signal" || std::find(extra.begin(), extra.end(), name) != extra.end()) continue;
-    return r.at(v, key + ": unknown key '" + std::string(name) + "' (expected message, signal" +
-                       (extra.size() ? ", " + std::string(*extra.begin()) : std::string()) + ")");
-  }
+/// hold_s: a signal silent for over an hour is no longer a dropout to bridge.
+constexpr config::Range kHoldRange{0.0, 3600.0, true, false};
+
+/// A string key that must be given and not be empty.
+std::string nonEmpty(const Section& s, std::string_view key, const std::string& expected) {
+  std::string v = s.string(key, expected);
+  if (v.empty()) s.failAt(*s.find(key), key, "expected " + expected + ", found \"\"");
+  return v;
+}
+
+/// { message = "…", signal = "…" } plus `extraKeys`, which are left to the caller.
+CanSignalRef signalRef(const Section& s, std::span<const KeySpec> extraKeys = {}) {
+  s.checkKeys(kSignalKeys, extraKeys);
   CanSignalRef ref;
-  for (auto [field, out] : {std::pair<const char*, std::string*>{"message", &ref.message}, {"signal", &ref.signal}}) {
-    const toml::node* f = t->get(field);
-    if (!f) return r.at(n, key + "." + field + ": missing (expected a string)");
-    const auto* s = f->as_string();
-    if (!s || s->get().empty()) return r.at(*f, key + "." + field + ": expected a non-empty string");
-    *out = s->get();
-  }
+  ref.message = nonEmpty(s, "message", "a message name of the DBC");
+  ref.signal = nonEmpty(s, "signal", "a signal name of the DBC");
   return ref;
+}
+
+CanConfig parseRoot(const toml::table& root, const std::string& file, const std::string& baseDir) {
+  const Section top(file, root, "");
+  top.checkKeys(kTopKeys);
+  CanConfig c;
+  c.dbc_path = resolvePath(baseDir, nonEmpty(top, "dbc", "the path of a DBC file"));
+  c.mapping.hold_s = top.number("hold_s", kHoldRange, c.mapping.hold_s);
+  if (const auto names = top.optStrings("fallback")) {
+    for (std::size_t i = 0; i < names->size(); ++i) {
+      const auto it = std::find_if(kLampKeys.begin(), kLampKeys.end(),
+                                   [&](const KeySpec& k) { return k.name == (*names)[i]; });
+      if (it == kLampKeys.end()) {
+        std::string expected;
+        for (std::size_t k = 0; k < kLampKeys.size(); ++k)
+          expected += (k == 0 ? "" : k + 1 == kLampKeys.size() ? " or " : ", ") + config::inQuotes(kLampKeys[k].name);
+        top.failAt(*top.find("fallback")->as_array()->get(i), "fallback[" + std::to_string(i) + "]",
+                   "expected a lamp name, " + expected + ", found " + config::inQuotes((*names)[i]));
+      }
+      c.mapping.fallback_lights |= kCanLampBits[static_cast<std::size_t>(it - kLampKeys.begin())];
+    }
+  }
+  if (const toml::table* t = top.optTable("speed")) {
+    const Section s(file, *t, "[speed]");
+    c.mapping.speed = signalRef(s, kSpeedExtraKeys);
+    c.mapping.speed_to_m_s = s.number("to_m_s", config::kPositive, c.mapping.speed_to_m_s);
+  }
+  if (const toml::table* t = top.optTable("lamps")) {
+    const Section lamps(file, *t, "[lamps]");
+    lamps.checkKeys(kLampKeys);
+    for (std::size_t i = 0; i < kLampKeys.size(); ++i) {
+      const std::string name(kLampKeys[i].name);
+      if (const toml::table* l = lamps.optTable(name)) c.mapping.lamps[i] = signalRef(Section(file, *l, "[lamps." + name + "]"));
+    }
+  }
+  return c;
 }
 
 }  // namespace
 
 Result<CanConfig> parseCanConfig(std::string_view text, const std::string& fileName, const std::string& baseDir) {
-  toml::table root;
-  try {
-    root = toml::parse(text, fileName);
-  } catch (const toml::parse_error& e) {
-    return fileError(fileName, static_cast<std::size_t>(e.source().begin.line),
-                     "TOML syntax: " + std::string(e.description()));
-  }
-  const Reader r{fileName};
-  CanConfig c;
-  for (const auto& [k, v] : root) {
-    const std::string_view key = k.str();
-    if (key != "dbc" && key != "hold_s" && key != "fallback" && key != "speed" && key != "lamps")
-      return r.at(v, "unknown key '" + std::string(key) + "' (expected dbc, hold_s, fallback, speed, lamps)");
-  }
-  const toml::node* dbc = root.get("dbc");
-  if (!dbc) return r.at(1, "dbc: missing (expected the path of a DBC file)");
-  if (const auto* s = dbc->as_string(); s && !s->get().empty()) {
-    std::filesystem::path p(s->get());
-    c.dbc_path = p.is_absolute() ? p.string() : (std::filesystem::path(baseDir) / p).lexically_normal().string();
-  } else {
-    return r.at(*dbc, "dbc: expected a non-empty string (a path)");
-  }
-  if (const toml::node* h = root.get("hold_s")) {
-    const auto v = h->value<double>();
-    if (!v || !(*v > 0.0) || *v > 3600.0) return r.at(*h, "hold_s: expected a number of seconds in (0, 3600]");
-    c.mapping.hold_s = *v;
-  }
-  if (const toml::node* f = root.get("fallback")) {
-    const auto* a = f->as_array();
-    if (!a) return r.at(*f, "fallback: expected an array of lamp names");
-    for (const toml::node& e : *a) {
-      const auto* s = e.as_string();
-      const auto it = s ? std::find(kLampKeys.begin(), kLampKeys.end(), s->get()) : kLampKeys.end();
-      if (it == kLampKeys.end())
-        return r.at(e, "fallback: expected lamp names (low_beam, high_beam, front_fog, rear_fog, indicator_left, "
-                       "indicator_right)");
-      c.mapping.fallback_lights |= kCanLampBits[static_cast<std::size_t>(it - kLampKeys.begin())];
-    }
-  }
-  if (const toml::node* s = root.get("speed")) {
-    auto ref = signalRef(r, *s, "speed", {"to_m_s"});
-    if (!ref) return ref.error();
-    c.mapping.speed = *ref;
-    if (const toml::node* f = s->as_table()->get("to_m_s")) {
-      const auto v = f->value<double>();
-      if (!v || !(*v > 0.0)) return r.at(*f, "speed.to_m_s: expected a number > 0 (1/3.6 for km/h)");
-      c.mapping.speed_to_m_s = *v;
-    }
-  }
-  if (const toml::node* l = root.get("lamps")) {
-    const auto* t = l->as_table();
-    if (!t) return r.at(*l, "lamps: expected a table");
-    for (const auto& [k, v] : *t) {
-      const auto it = std::find(kLampKeys.begin(), kLampKeys.end(), k.str());
-      if (it == kLampKeys.end())
-        return r.at(v, "lamps: unknown lamp '" + std::string(k.str()) +
-                           "' (expected low_beam, high_beam, front_fog, rear_fog, indicator_left, indicator_right)");
-      auto ref = signalRef(r, v, "lamps." + std::string(k.str()));
-      if (!ref) return ref.error();
-      c.mapping.lamps[static_cast<std::size_t>(it - kLampKeys.begin())] = *ref;
-    }
-  }
-  return c;
+  return config::parseTomlFile<CanConfig>(text, fileName,
+                                          [&](const toml::table& root) { return parseRoot(root, fileName, baseDir); });
 }
 
 Result<CanConfig> loadCanConfig(const std::string& path) {
@@ -126,6 +121,17 @@ Result<CanDecoder> makeDecoder(const CanConfig& config) {
   auto d = CanDecoder::create(*dbc, config.mapping);
   if (!d) return Error{"CAN mapping against " + config.dbc_path + ": " + d.error().message};
   return d;
+}
+
+std::vector<config::KeyTable> canConfigKeyTables() {
+  using config::keyNames;
+  return {
+      {"can.md", "Top level", "CAN mapping: top level", keyNames({kTopKeys})},
+      {"can.md", "Signals: `{ message, signal }`", "CAN mapping [lamps.*] entries, and speed beside to_m_s",
+       keyNames({kSignalKeys})},
+      {"can.md", "`speed`", "CAN mapping speed, beside the signal keys", keyNames({kSpeedExtraKeys})},
+      {"can.md", "`[lamps]`", "CAN mapping [lamps]", keyNames({kLampKeys})},
+  };
 }
 
 }  // namespace fogbeam::ipc

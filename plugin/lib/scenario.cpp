@@ -62,47 +62,48 @@ constexpr std::array<std::pair<std::string_view, std::uint32_t>, 9> kLightNames{
 }};
 
 // ---- The keys -------------------------------------------------------------------------------
+// Names only: each key's description is its row in docs/scenario.md (scenarioKeyTables()).
 
 constexpr std::array kTopKeys{
-    KeySpec{"name", "string, optional: shown in reports"},
-    KeySpec{"description", "string, optional"},
-    KeySpec{"scene", "string, required: the world's scene file (relative to the scenario)"},
-    KeySpec{"duration_s", "number, s, required, > 0"},
-    KeySpec{"fog", "table [fog]: scene [fog] keys plus interpolation; default: the scene's fog"},
-    KeySpec{"fog_key", "array of tables [[fog_key]]: t_s, visibility_m"},
-    KeySpec{"ego", "table [ego], required"},
-    KeySpec{"vehicle", "array of tables [[vehicle]], optional"},
+    KeySpec{"name"},
+    KeySpec{"description"},
+    KeySpec{"scene"},
+    KeySpec{"duration_s"},
+    KeySpec{"fog"},
+    KeySpec{"fog_key"},
+    KeySpec{"ego"},
+    KeySpec{"vehicle"},
 };
 constexpr std::array kFogExtraKeys{
-    KeySpec{"interpolation", "string, default \"log-linear\": \"log-linear\" | \"step\""},
+    KeySpec{"interpolation"},
 };
 constexpr std::array kFogKeyKeys{
-    KeySpec{"t_s", "number, s, required, >= 0"},
-    KeySpec{"visibility_m", "number, m, required, > 0"},
+    KeySpec{"t_s"},
+    KeySpec{"visibility_m"},
 };
 constexpr std::array kVehicleKeys{
-    KeySpec{"name", "string, optional"},
-    KeySpec{"id", "integer, traffic only, required, unique, [0, 2^32)"},
-    KeySpec{"class", "integer, traffic only, default 0: the rig in the service config"},
-    KeySpec{"lights", "array of light names, default [] (ego: [\"low-beam\", \"position\"])"},
-    KeySpec{"bending_deg", "number, deg, ego only, default 0, [-45, 45]"},
-    KeySpec{"key", "array of tables [[…key]]: t_s, position_m, yaw_deg, pitch_deg, roll_deg"},
-    KeySpec{"csv", "string: an esmini CSV export instead of keys (relative to the scenario)"},
-    KeySpec{"csv_id", "integer: the CSV's object id to follow (or csv_name)"},
-    KeySpec{"csv_name", "string: the CSV's object name to follow (or csv_id)"},
-    KeySpec{"event", "array of tables [[…event]]: t_s, lights, bending_deg"},
+    KeySpec{"name"},
+    KeySpec{"id"},
+    KeySpec{"class"},
+    KeySpec{"lights"},
+    KeySpec{"bending_deg"},
+    KeySpec{"key"},
+    KeySpec{"csv"},
+    KeySpec{"csv_id"},
+    KeySpec{"csv_name"},
+    KeySpec{"event"},
 };
 constexpr std::array kPoseKeyKeys{
-    KeySpec{"t_s", "number, s, required, increasing"},
-    KeySpec{"position_m", "[x, y, z], m, required"},
-    KeySpec{"yaw_deg", "number, deg: all keys or none (none: heading along the path)"},
-    KeySpec{"pitch_deg", "number, deg, default 0"},
-    KeySpec{"roll_deg", "number, deg, default 0"},
+    KeySpec{"t_s"},
+    KeySpec{"position_m"},
+    KeySpec{"yaw_deg"},
+    KeySpec{"pitch_deg"},
+    KeySpec{"roll_deg"},
 };
 constexpr std::array kEventKeys{
-    KeySpec{"t_s", "number, s, required, >= 0"},
-    KeySpec{"lights", "array of light names, required: the whole light state from t_s on"},
-    KeySpec{"bending_deg", "number, deg, ego only, default 0, [-45, 45]"},
+    KeySpec{"t_s"},
+    KeySpec{"lights"},
+    KeySpec{"bending_deg"},
 };
 
 std::uint32_t lightsOf(const Section& s, std::string_view key, std::uint32_t fallback) {
@@ -462,6 +463,19 @@ Result<Scenario> loadScenario(const std::string& path) {
   auto text = readTextFile(path);
   if (!text) return text.error();
   return parseScenario(*text, path, fs::path(path).parent_path().string());
+}
+
+std::vector<config::KeyTable> scenarioKeyTables() {
+  using config::keyNames;
+  return {
+      {"scenario.md", "Top level", "scenario: top level", keyNames({kTopKeys})},
+      {"scenario.md", "`[fog]`", "scenario [fog], beside the scene [fog] keys", keyNames({kFogExtraKeys})},
+      {"scenario.md", "`[[fog_key]]`", "scenario [[fog_key]]", keyNames({kFogKeyKeys})},
+      {"scenario.md", "`[ego]` and `[[vehicle]]`", "scenario [ego], [[vehicle]]", keyNames({kVehicleKeys})},
+      {"scenario.md", "Keyframes: `[[…key]]`", "scenario [[ego.key]], [[vehicle.key]]", keyNames({kPoseKeyKeys})},
+      {"scenario.md", "Light events: `[[…event]]`", "scenario [[ego.event]], [[vehicle.event]]",
+       keyNames({kEventKeys})},
+  };
 }
 
 // ---- esmini CSV ---------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 // fogbeam — the service configuration (service_config.hpp, docs/service.md).
 #include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/plugin/scenario.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 #include <fogbeam/scene/sections.hpp>
 #include <fogbeam/util/files.hpp>
@@ -11,6 +12,7 @@
 #include <set>
 #include <sstream>
 #include <utility>
+#include <vector>
 
 #include "builtin_service_config.hpp"  // generated: kBuiltinServiceConfig (config/service/default.toml)
 
@@ -24,88 +26,87 @@ using config::Range;
 using config::Section;
 
 constexpr std::array kTopKeys{
-    KeySpec{"world", "table [world]: scene, scenario, scenario_loop"},
-    KeySpec{"fog", "table [fog]: scene [fog] keys, the fog until a host sends one"},
-    KeySpec{"render", "table [render]: method, subsampling, view_table_step_deg, moving_lamps, surface, threads, "
-                      "airlight, gpu_pieces"},
-    KeySpec{"glow", "table [glow]: enabled, fade_in (the scene's [glow] keys): glow around lamps in view"},
-    KeySpec{"glare", "table [glare]: enabled, age_years, pigmentation (the scene's [glare] keys): disability glare"},
-    KeySpec{"timing", "table [timing]: mode, rate_hz"},
-    KeySpec{"status", "table [status]: interval_s, udp_port"},
-    KeySpec{"input", "table [input]: [input.udp], [input.can]"},
-    KeySpec{"channel", "array of tables [[channel]]: the output views"},
-    KeySpec{"ego", "table [ego]: eye_m, bending_max_deg, [[ego.lamp]]"},
-    KeySpec{"traffic_class", "array of tables [[traffic_class]]: class, name, [[traffic_class.lamp]]"},
+    KeySpec{"world"},
+    KeySpec{"fog"},
+    KeySpec{"render"},
+    KeySpec{"glow"},
+    KeySpec{"glare"},
+    KeySpec{"timing"},
+    KeySpec{"status"},
+    KeySpec{"input"},
+    KeySpec{"channel"},
+    KeySpec{"ego"},
+    KeySpec{"traffic_class"},
 };
 constexpr std::array kWorldKeys{
-    KeySpec{"scene", "string, path: the world's scene file (its world lamps, planes, glTF)"},
-    KeySpec{"scenario", "string, path, or \"\" for none: played when no host sends"},
-    KeySpec{"scenario_loop", "boolean, default true"},
+    KeySpec{"scene"},
+    KeySpec{"scenario"},
+    KeySpec{"scenario_loop"},
 };
 /// The service's own [render] keys; the table also takes the scene's [render] keys
 /// (config::renderKeys(): airlight, gpu_pieces).
 constexpr std::array kRenderKeys{
-    KeySpec{"method", "\"accurate\" | \"seed\" | \"reference\""},
-    KeySpec{"subsampling", "boolean"},
-    KeySpec{"view_table_step_deg", "number, deg, [0.05, 5]"},
-    KeySpec{"moving_lamps", "\"pencil\" | \"per-ray\""},
-    KeySpec{"surface", "\"auto\" | \"gl\" | \"cpu\""},
-    KeySpec{"threads", "integer, 0 = every core"},
+    KeySpec{"method"},
+    KeySpec{"subsampling"},
+    KeySpec{"view_table_step_deg"},
+    KeySpec{"moving_lamps"},
+    KeySpec{"surface"},
+    KeySpec{"threads"},
 };
 constexpr std::array kTimingKeys{
-    KeySpec{"mode", "\"free-running\" | \"lock-step\""},
-    KeySpec{"rate_hz", "number, Hz, (0, 1000]"},
+    KeySpec{"mode"},
+    KeySpec{"rate_hz"},
 };
 constexpr std::array kStatusKeys{
-    KeySpec{"interval_s", "number, s, [0.1, 3600]"},
-    KeySpec{"udp_port", "integer, 0 = off"},
+    KeySpec{"interval_s"},
+    KeySpec{"udp_port"},
 };
 constexpr std::array kInputKeys{
-    KeySpec{"udp", "table [input.udp]"},
-    KeySpec{"can", "table [input.can]"},
+    KeySpec{"udp"},
+    KeySpec{"can"},
 };
 constexpr std::array kUdpKeys{
-    KeySpec{"bind", "string, IPv4 address"},
-    KeySpec{"port", "integer, [0, 65535]"},
-    KeySpec{"multicast", "string, IPv4 group or \"\""},
-    KeySpec{"allow", "array of IPv4 address strings; empty = any"},
-    KeySpec{"traffic_timeout_s", "number, s, (0, 60]"},
+    KeySpec{"bind"},
+    KeySpec{"port"},
+    KeySpec{"multicast"},
+    KeySpec{"allow"},
+    KeySpec{"traffic_timeout_s"},
 };
 constexpr std::array kCanKeys{
-    KeySpec{"source", "\"none\" | \"interface\" | \"candump\" | \"cannelloni\""},
-    KeySpec{"interface", "string: SocketCAN interface (source = \"interface\")"},
-    KeySpec{"candump", "string, path: candump -L log (source = \"candump\")"},
-    KeySpec{"candump_speed", "number, replay speed factor, (0, 100]"},
-    KeySpec{"cannelloni_port", "integer, UDP port (source = \"cannelloni\")"},
-    KeySpec{"mapping", "string, path: the CAN mapping file (docs/can.md)"},
+    KeySpec{"source"},
+    KeySpec{"interface"},
+    KeySpec{"candump"},
+    KeySpec{"candump_speed"},
+    KeySpec{"cannelloni_port"},
+    KeySpec{"mapping"},
 };
 constexpr std::array kChannelKeys{
-    KeySpec{"name", "string, required, unique: segment /fogbeam.<name>"},
-    KeySpec{"width", "integer, px, [1, 16384]"},
-    KeySpec{"height", "integer, px, [1, 16384]"},
-    KeySpec{"fov_x_deg", "number, deg, (0, 180); not with frustum_deg"},
-    KeySpec{"frustum_deg", "[left, right, up, down], deg: an off-axis view; height follows (square pixels)"},
-    KeySpec{"eye_offset_m", "[x, y, z], m, from the driver's eye"},
-    KeySpec{"yaw_deg", "number, deg"},
-    KeySpec{"pitch_deg", "number, deg"},
-    KeySpec{"roll_deg", "number, deg"},
-    KeySpec{"format", "\"rgba8-srgb\" | \"rgba16f-linear\" | \"rgba16f-overlay\""},
-    KeySpec{"distance", "boolean"},
-    KeySpec{"exposure_ev", "number, EV"},
+    KeySpec{"name"},
+    KeySpec{"width"},
+    KeySpec{"height"},
+    KeySpec{"fov_x_deg"},
+    KeySpec{"frustum_deg"},
+    KeySpec{"eye_offset_m"},
+    KeySpec{"yaw_deg"},
+    KeySpec{"pitch_deg"},
+    KeySpec{"roll_deg"},
+    KeySpec{"format"},
+    KeySpec{"distance"},
+    KeySpec{"exposure_ev"},
 };
 constexpr std::array kEgoKeys{
-    KeySpec{"eye_m", "[x, y, z], m, vehicle frame"},
-    KeySpec{"bending_max_deg", "number, deg, [0, 45]"},
-    KeySpec{"lamp", "array of tables [[ego.lamp]]"},
+    KeySpec{"eye_m"},
+    KeySpec{"bending_max_deg"},
+    KeySpec{"lamp"},
 };
 constexpr std::array kClassKeys{
-    KeySpec{"class", "integer, [0, 65535], required, unique"},
-    KeySpec{"name", "string"},
-    KeySpec{"lamp", "array of tables [[traffic_class.lamp]]"},
+    KeySpec{"class"},
+    KeySpec{"name"},
+    KeySpec{"lamp"},
 };
 constexpr std::array kRigLampExtraKeys{
-    KeySpec{"role", "string, required: low-beam | high-beam | front-fog | rear-fog | position | brake | drl | always"},
-    KeySpec{"bending", "boolean, ego only, default false"},
+    KeySpec{"role"},
+    KeySpec{"bending"},
 };
 
 constexpr std::array<std::pair<std::string_view, std::uint32_t>, 8> kRoles{{
@@ -423,6 +424,37 @@ Status validate(const ServiceConfig& c) {
     }
   }
   return Ok{};
+}
+
+std::vector<config::KeyTable> serviceConfigKeyTables() {
+  using config::keyNames;
+  return {
+      {"service.md", "Top level", "service config: top level", keyNames({kTopKeys})},
+      {"service.md", "`[world]`", "service [world]", keyNames({kWorldKeys})},
+      {"service.md", "`[render]`", "service [render]: its own keys and the scene's [render] keys",
+       keyNames({kRenderKeys, config::renderKeys()})},
+      {"service.md", "`[glow]`", "service [glow] (the scene's [glow] keys)", keyNames({config::glowKeys()})},
+      {"service.md", "`[glare]`", "service [glare] (the scene's [glare] keys)", keyNames({config::glareKeys()})},
+      {"service.md", "`[timing]`", "service [timing]", keyNames({kTimingKeys})},
+      {"service.md", "`[status]`", "service [status]", keyNames({kStatusKeys})},
+      {"service.md", "`[input]`", "service [input]", keyNames({kInputKeys})},
+      {"service.md", "`[input.udp]`", "service [input.udp]", keyNames({kUdpKeys})},
+      {"service.md", "`[input.can]`", "service [input.can]", keyNames({kCanKeys})},
+      {"service.md", "`[[channel]]`: output views", "service [[channel]]", keyNames({kChannelKeys})},
+      {"service.md", "`[ego]`", "service [ego]", keyNames({kEgoKeys})},
+      {"service.md", "`[[traffic_class]]`: traffic rigs", "service [[traffic_class]]", keyNames({kClassKeys})},
+      {"service.md", "Rig lamps: `[[ego.lamp]]` and `[[traffic_class.lamp]]`",
+       "service [[ego.lamp]], [[traffic_class.lamp]], beside the scene's [[lamp]] keys", keyNames({kRigLampExtraKeys})},
+  };
+}
+
+std::vector<config::KeyTable> configKeyTables() {
+  std::vector<config::KeyTable> all = config::sceneKeyTables();
+  for (const std::vector<config::KeyTable>& more :
+       {scenarioKeyTables(), serviceConfigKeyTables(), ipc::canConfigKeyTables()}) {
+    all.insert(all.end(), more.begin(), more.end());
+  }
+  return all;
 }
 
 std::string toToml(const ServiceConfig& c) {

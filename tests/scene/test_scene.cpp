@@ -297,17 +297,6 @@ TEST(SceneFile, TheDocumentedExampleParses) {
   EXPECT_EQ(s.planes.size(), 1u);
 }
 
-TEST(SceneFile, EveryKeyIsDocumented) {
-  const auto doc = readTextFile(std::string(FOGBEAM_CONFIG_DIR) + "/../docs/scene.md");
-  ASSERT_TRUE(doc) << doc.error().message;
-  for (const char* key :
-       {"extinction_per_m", "visibility_m", "albedo", "phase", "g", "droplet_diameter_um", "ambient_cd_m2",
-        "position_m", "yaw_deg", "pitch_deg", "roll_deg", "fov_x_deg", "frustum_deg", "width", "height", "name", "profile",
-        "intensity_cd", "inner_deg", "outer_deg", "scale", "color", "mount", "point_m", "normal", "reflectance", "gltf"}) {
-    EXPECT_PRED2(Contains, doc.value(), "`" + std::string(key) + "`");
-  }
-}
-
 // ---- Bad files: each message names file, line, section, key and what was expected -------------
 
 TEST(SceneFileErrors, MissingTableOrKey) {
@@ -599,14 +588,6 @@ TEST(SceneEffects, BadAperturesSayWhereAndWhat) {
                "bad.toml:17: [[lamp]] #1 aperture_samples");
   EXPECT_PRED2(Contains, errorOf(kFogAndCamera + kLamp + "aperture_size_m = 0.1\n"),
                "bad.toml:15: [[lamp]] #1 aperture_size_m: only allowed with aperture = \"rectangle\" or \"disc\"");
-}
-
-TEST(SceneEffects, NewKeysAreDocumented) {
-  const auto doc = readTextFile(std::string(FOGBEAM_CONFIG_DIR) + "/../docs/scene.md");
-  ASSERT_TRUE(doc) << doc.error().message;
-  for (const char* key : {"[glow]", "fade_in", "[glare]", "age_years", "pigmentation", "[render]", "airlight",
-                          "gpu_pieces", "aperture", "aperture_size_m", "aperture_samples"})
-    EXPECT_PRED2(Contains, doc.value(), "`" + std::string(key) + "`");
 }
 
 // A lamp with a face (physics/aperture.hpp) as the scene expands it into named point lamps.

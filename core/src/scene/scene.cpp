@@ -1,8 +1,9 @@
 // fogbeam — scene files (TOML): fog, camera, lamps, planes, optional glTF.
 //
-// The tables of keys below are the parser's contract; docs/scene.md documents each key with
-// its type, unit, default and range (Mitsuba style: one place, next to the parser). A key
-// that is not in its table is an error, never ignored.
+// The lists of keys below are the parser's contract: a key that is not in its list is an error,
+// never ignored. docs/scene.md documents each key (type, unit, default, range) in one place, its
+// key tables; sceneKeyTables() binds each list to its table, and a test requires that the table
+// lists exactly these keys (tests/plugin/test_config_docs.cpp).
 //
 // Errors read "file:line: [section] key: expected …, found …" (util/toml_section.hpp); the [fog]
 // and lamp tables are read by scene/sections.hpp, shared with the scenario and service-config
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <map>
 #include <utility>
+#include <vector>
 
 namespace fogbeam {
 
@@ -27,32 +29,31 @@ using namespace config;  // NOLINT(google-build-using-namespace): this file is t
 // ---- The keys -------------------------------------------------------------------------------
 
 constexpr std::array kTopKeys{
-    KeySpec{"fog", "table [fog], required"},
-    KeySpec{"camera", "table [camera], required"},
-    KeySpec{"lamp", "array of tables [[lamp]], optional, any number"},
-    KeySpec{"plane", "array of tables [[plane]], optional, any number"},
-    KeySpec{"gltf", "string, path relative to the scene file, optional; the file must exist"},
-    KeySpec{"glow", "table [glow], optional: multiple-scattering glow around lamps (docs/scene.md)"},
-    KeySpec{"glare", "table [glare], optional: the driver's disability glare (docs/scene.md)"},
-    KeySpec{"render", "table [render], optional: where the airlight is computed (docs/scene.md)"},
+    KeySpec{"fog"},
+    KeySpec{"camera"},
+    KeySpec{"lamp"},
+    KeySpec{"plane"},
+    KeySpec{"gltf"},
+    KeySpec{"glow"},
+    KeySpec{"glare"},
+    KeySpec{"render"},
 };
 
 constexpr std::array kCameraKeys{
-    KeySpec{"position_m", "[x, y, z], m, required"},
-    KeySpec{"yaw_deg", "number, deg, default 0"},
-    KeySpec{"pitch_deg", "number, deg, default 0; positive tilts the view down"},
-    KeySpec{"roll_deg", "number, deg, default 0"},
-    KeySpec{"fov_x_deg", "number, deg, default 60, (0, 180); a centred camera; not with frustum_deg"},
-    KeySpec{"frustum_deg", "[left, right, up, down], deg, optional, each in (-89, 89), left + right > 0, "
-                           "up + down > 0; an off-axis camera; not with fov_x_deg"},
-    KeySpec{"width", "integer, pixels, required, [1, 16384]"},
-    KeySpec{"height", "integer, pixels, [1, 16384]; required unless frustum_deg gives it (then within 0.5 px)"},
+    KeySpec{"position_m"},
+    KeySpec{"yaw_deg"},
+    KeySpec{"pitch_deg"},
+    KeySpec{"roll_deg"},
+    KeySpec{"fov_x_deg"},
+    KeySpec{"frustum_deg"},
+    KeySpec{"width"},
+    KeySpec{"height"},
 };
 
 constexpr std::array kPlaneKeys{
-    KeySpec{"point_m", "[x, y, z], m, required"},
-    KeySpec{"normal", "[x, y, z], required, non-zero; normalised on load"},
-    KeySpec{"reflectance", "number, default 0.15, [0, 1]"},
+    KeySpec{"point_m"},
+    KeySpec{"normal"},
+    KeySpec{"reflectance"},
 };
 
 constexpr double kDefaultFovX_deg = 60.0;
@@ -192,6 +193,22 @@ Result<Scene> loadScene(const std::string& path) {
   auto text = readTextFile(path);
   if (!text) return text.error();
   return parseScene(text.value(), path, fs::path(path).parent_path().string());
+}
+
+std::vector<config::KeyTable> config::sceneKeyTables() {
+  return {
+      {"scene.md", "Top level", "scene file: top level", keyNames({kTopKeys})},
+      {"scene.md", "`[fog]`: homogeneous medium",
+       "scene [fog]; scenario [fog] and service [fog] (docs there refer to this table)", keyNames({fogKeys()})},
+      {"scene.md", "`[camera]`: pinhole, square pixels, centred or off-axis", "scene [camera]", keyNames({kCameraKeys})},
+      {"scene.md", "`[[lamp]]`: point lamp (any number)",
+       "scene [[lamp]]; service [[ego.lamp]] and [[traffic_class.lamp]] (there without mount, plus their own keys)",
+       keyNames({lampKeys()})},
+      {"scene.md", "`[[plane]]`: infinite Lambertian plane (any number)", "scene [[plane]]", keyNames({kPlaneKeys})},
+      {"scene.md", "`[glow]`", "scene [glow]", keyNames({glowKeys()})},
+      {"scene.md", "`[glare]`", "scene [glare]", keyNames({glareKeys()})},
+      {"scene.md", "`[render]`", "scene [render]", keyNames({renderKeys()})},
+  };
 }
 
 }  // namespace fogbeam

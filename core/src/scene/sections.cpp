@@ -15,33 +15,33 @@ namespace fogbeam::config {
 
 namespace {
 
+// Names only: each key's description is its row in docs/scene.md (sceneKeyTables()).
 constexpr std::array kFogKeys{
-    KeySpec{"extinction_per_m", "number, 1/m, > 0; exactly one of extinction_per_m and visibility_m"},
-    KeySpec{"visibility_m", "number, m, > 0; MOR: K_t = ln(20) / V"},
-    KeySpec{"albedo", "number, default 1.0, [0, 1]"},
-    KeySpec{"phase", "string, default \"henyey-greenstein\": \"isotropic\" | \"henyey-greenstein\" | \"fog-mie\""},
-    KeySpec{"g", "number, default 0.85, (-1, 1); henyey-greenstein only"},
-    KeySpec{"droplet_diameter_um", "number, um, default 10, [5, 50]; fog-mie only"},
-    KeySpec{"ambient_cd_m2", "number, cd/m2, default 0, >= 0"},
+    KeySpec{"extinction_per_m"},
+    KeySpec{"visibility_m"},
+    KeySpec{"albedo"},
+    KeySpec{"phase"},
+    KeySpec{"g"},
+    KeySpec{"droplet_diameter_um"},
+    KeySpec{"ambient_cd_m2"},
 };
 
 constexpr std::array kLampKeys{
-    KeySpec{"name", "string, default \"lamp[N]\" (N counts [[lamp]] entries from 1), unique"},
-    KeySpec{"position_m", "[x, y, z], m, required"},
-    KeySpec{"yaw_deg", "number, deg, default 0"},
-    KeySpec{"pitch_deg", "number, deg, default 0; positive tilts the beam down"},
-    KeySpec{"roll_deg", "number, deg, default 0"},
-    KeySpec{"profile", "string, required: \"isotropic\" | \"spot\" | path to .ies/.ldt/.csv"},
-    KeySpec{"intensity_cd", "number, cd, >= 0; required for isotropic and spot, forbidden for files"},
-    KeySpec{"inner_deg", "number, deg, spot only, required; 0 <= inner_deg < outer_deg"},
-    KeySpec{"outer_deg", "number, deg, spot only, required; outer_deg <= 180"},
-    KeySpec{"scale", "number, default 1, > 0; multiplies every candela value (meant for files)"},
-    KeySpec{"color", "[r, g, b], default [1, 1, 1], each >= 0"},
-    KeySpec{"mount", "string, default \"world\": \"world\" | \"vehicle\" (moves with the camera)"},
-    KeySpec{"aperture", "string, default \"point\": \"point\" | \"rectangle\" | \"disc\" (emitting face in the lamp's y-z plane)"},
-    KeySpec{"aperture_size_m", "rectangle: [width, height], m, each in (0, 2]; disc: number, the diameter, m, (0, 2]; "
-                               "required with rectangle and disc, not with point"},
-    KeySpec{"aperture_samples", "integer, points per axis, default 3, [1, 8]; not with point"},
+    KeySpec{"name"},
+    KeySpec{"position_m"},
+    KeySpec{"yaw_deg"},
+    KeySpec{"pitch_deg"},
+    KeySpec{"roll_deg"},
+    KeySpec{"profile"},
+    KeySpec{"intensity_cd"},
+    KeySpec{"inner_deg"},
+    KeySpec{"outer_deg"},
+    KeySpec{"scale"},
+    KeySpec{"color"},
+    KeySpec{"mount"},
+    KeySpec{"aperture"},
+    KeySpec{"aperture_size_m"},
+    KeySpec{"aperture_samples"},
 };
 
 /// aperture_samples: 8 per axis is 64 point lamps for one lamp, far past the point where the
@@ -282,18 +282,17 @@ namespace {
 // [glow], [glare], [render]: shared by scene files and service configs, so both accept exactly
 // the same keys with the same checks.
 constexpr std::array kGlowKeys{
-    KeySpec{"enabled", "boolean, default true (the table's presence turns glow on)"},
-    KeySpec{"fade_in", "number, optical distance K_t R, default 2.0, >= 1.1: glow counts fully from here, "
-                       "fading in linearly from K_t R = 1.1"},
+    KeySpec{"enabled"},
+    KeySpec{"fade_in"},
 };
 constexpr std::array kGlareKeys{
-    KeySpec{"enabled", "boolean, default true (the table's presence turns glare on)"},
-    KeySpec{"age_years", "number, years, default 40, [0, 120]: the observer's age (CIE 146:2002)"},
-    KeySpec{"pigmentation", "number, default 0.5, [0, 1]: eye pigmentation, 0 very dark ... 1 light blue"},
+    KeySpec{"enabled"},
+    KeySpec{"age_years"},
+    KeySpec{"pigmentation"},
 };
 constexpr std::array kRenderKeys{
-    KeySpec{"airlight", "string, default \"cpu\": \"cpu\" (table evaluator) | \"gpu\" (GLSL in the surface pass)"},
-    KeySpec{"gpu_pieces", "integer, default 64, [4, 1024]: GPU path, quadratic pieces per ray for measured lamps"},
+    KeySpec{"airlight"},
+    KeySpec{"gpu_pieces"},
 };
 
 constexpr std::array<std::string_view, 2> kDevices{"cpu", "gpu"};

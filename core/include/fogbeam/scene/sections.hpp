@@ -23,6 +23,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace fogbeam::config {
 
@@ -74,5 +75,11 @@ class ProfileCache {
 [[nodiscard]] RenderSettings parseRenderSettings(const Section& s, const RenderSettings& fallback = {},
                                                  std::span<const KeySpec> extraKeys = {});
 [[nodiscard]] SceneEffects parseEffects(const Section& top);
+
+/// The scene format's key tables in docs/scene.md (config::KeyTable): the top level, [fog],
+/// [camera], [[lamp]], [[plane]], [glow], [glare] and [render]. The scenario and the service
+/// config embed [fog], [[lamp]], [glow], [glare] and [render], so these entries document those
+/// sections there too. Defined in scene.cpp, beside the scene's own lists.
+[[nodiscard]] std::vector<KeyTable> sceneKeyTables();
 
 }  // namespace fogbeam::config

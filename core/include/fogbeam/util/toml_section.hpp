@@ -12,6 +12,7 @@
 // Thread-safety: plain functions and values; a Section refers to a table it does not own.
 #pragma once
 
+#include <fogbeam/util/key_table.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <toml++/toml.h>
@@ -26,12 +27,6 @@
 #include <vector>
 
 namespace fogbeam::config {
-
-/// One accepted key: its name and a one-line summary (type, unit, default, range).
-struct KeySpec {
-  std::string_view name;
-  std::string_view summary;
-};
 
 /// What a parser throws; turned into Result's Error at the file format's entry point.
 struct ConfigError {

@@ -1,6 +1,6 @@
-// fogbeam — the CAN mapping as a TOML table (docs/can.md): which DBC file, which message and
-// signal mean which lamp and the speed, the hold time and the fallback. The same table is the
-// `[can]` section of the service configuration (issue 5); a standalone file works too:
+// fogbeam — the CAN mapping as a TOML file (docs/can.md): which DBC file, which message and
+// signal mean which lamp and the speed, the hold time and the fallback. The service config names
+// it (`[input.can] mapping`), and so does `fogbeam send --can-config`:
 //
 //   dbc = "vehicle.dbc"                    # relative to the file that names it
 //   hold_s = 0.5                           # s, > 0
@@ -9,15 +9,20 @@
 //   [lamps]                                # any of: low_beam, high_beam, front_fog, rear_fog,
 //   low_beam = { message = "LIGHT_STALK", signal = "LOW_BEAM" }   #  indicator_left, indicator_right
 //
-// Unknown keys, wrong types and names the DBC lacks are errors with file, line and what was
-// expected.
+// It is read like every configuration format (util/toml_section.hpp): unknown keys (with a "did
+// you mean") and wrong types are errors with file, line, table, key and what was expected; names
+// the DBC lacks are errors of makeDecoder() that list what the DBC has.
+//
+// Thread-safety: plain functions and values; parsing is reentrant.
 #pragma once
 
 #include <fogbeam/ipc/can_input.hpp>
+#include <fogbeam/util/key_table.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace fogbeam::ipc {
 
@@ -30,7 +35,11 @@ struct CanConfig {
 [[nodiscard]] Result<CanConfig> parseCanConfig(std::string_view text, const std::string& fileName,
                                                const std::string& baseDir);
 [[nodiscard]] Result<CanConfig> loadCanConfig(const std::string& path);
-/// Loads the DBC a configuration names and builds the decoder (errors name the config file).
+/// Loads the DBC a configuration names and builds the decoder (errors name the DBC file).
 [[nodiscard]] Result<CanDecoder> makeDecoder(const CanConfig& config);
+
+/// The mapping's key tables in docs/can.md (config::KeyTable): the top level, the signal keys of
+/// a [lamps] entry and of `speed`, what `speed` adds, and [lamps].
+[[nodiscard]] std::vector<config::KeyTable> canConfigKeyTables();
 
 }  // namespace fogbeam::ipc

@@ -23,6 +23,7 @@
 #include <fogbeam/ipc/protocol.hpp>
 #include <fogbeam/ipc/state_store.hpp>
 #include <fogbeam/physics/math.hpp>
+#include <fogbeam/util/key_table.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <cstdint>
@@ -126,6 +127,10 @@ void applyState(const ScenarioState& state, ipc::StateStore& store, std::uint32_
 /// Parses a scenario file; relative paths (scene, CSV) resolve against `baseDir`.
 [[nodiscard]] Result<Scenario> parseScenario(std::string_view text, const std::string& name, const std::string& baseDir);
 [[nodiscard]] Result<Scenario> loadScenario(const std::string& path);
+/// The scenario format's key tables in docs/scenario.md (config::KeyTable): the top level, the
+/// [fog] key it adds to the scene's, [[fog_key]], [ego] / [[vehicle]], their [[…key]] and
+/// [[…event]] entries.
+[[nodiscard]] std::vector<config::KeyTable> scenarioKeyTables();
 
 /// One row of an esmini CSV export (time, id, name, x, y, z, h, p, r, speed, …). esmini writes
 /// h, p, r in radians; they are converted to degrees here.

@@ -14,6 +14,7 @@
 #include <fogbeam/physics/medium.hpp>
 #include <fogbeam/scene/effects.hpp>
 #include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/key_table.hpp>
 #include <fogbeam/util/result.hpp>
 
 #include <array>
@@ -140,5 +141,19 @@ struct ServiceConfig {
 
 /// The effective configuration as TOML (every key, resolved paths), for --print-config.
 [[nodiscard]] std::string toToml(const ServiceConfig& config);
+
+/// The service config's own key tables in docs/service.md (config::KeyTable): the top level,
+/// [world], [render] (its keys and the scene's), [glow], [glare], [timing], [status], [input],
+/// [input.udp], [input.can], [[channel]], [ego], [[traffic_class]] and the keys rig lamps add to
+/// the scene's lamp keys. [fog] and the rig lamps' scene keys are the scene's tables
+/// (config::sceneKeyTables()).
+[[nodiscard]] std::vector<config::KeyTable> serviceConfigKeyTables();
+
+/// Every key table of every format fogbeam reads, the one registry the docs check walks
+/// (tests/plugin/test_config_docs.cpp): the scene's (config::sceneKeyTables()), the scenario's
+/// (scenarioKeyTables()), the service config's (serviceConfigKeyTables()) and the CAN
+/// mapping's (ipc::canConfigKeyTables()). Here because the service config embeds or names every
+/// other format. Reentrant.
+[[nodiscard]] std::vector<config::KeyTable> configKeyTables();
 
 }  // namespace fogbeam::plugin
