@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # The test suite under AddressSanitizer + UndefinedBehaviorSanitizer + LeakSanitizer (issue 6):
-# builds the `asan` preset (FOGBEAM_SANITIZE=ON: every target compiled and linked with
-# -fsanitize=address,undefined -fno-sanitize-recover=undefined, at -O2 -g: the `debug` preset's
-# -O0 makes the physics tests 16–20× slower, an hour for the suite on 2 cores) and runs ctest on
-# it with halt_on_error, so the first report fails the test that caused it.
+# builds the `asan` preset (clang 14, FOGBEAM_SANITIZE=ON: every target compiled and linked with
+# -fsanitize=address,undefined -fno-sanitize-recover=undefined, at -O1 with line tables only: the
+# `debug` preset's -O0 makes the physics tests 16–20× slower, an hour for the suite on 2 cores, and
+# full debug info only slows the build) and runs ctest on it with halt_on_error, so the first
+# report fails the test that caused it. The same build holds the libFuzzer targets
+# (scripts/fuzz.sh): their coverage hooks sit in the input readers only, not in the code the
+# suite spends its time in.
 #
 # usage: scripts/asan.sh [CTEST_LABEL_REGEX]   (pass 1 only those labels, e.g. 'ipc|service|serve|reliability';
 #                                               default: every test)

@@ -1,4 +1,5 @@
-#include <fogbeam/scene/scene.hpp>
+// fogbeam — the pinhole camera (camera.hpp).
+#include <fogbeam/scene/camera.hpp>
 
 #include <array>
 #include <cmath>

@@ -35,16 +35,6 @@ std::string describeNode(const toml::node& n) {
   return "an unknown value";
 }
 
-// ---- Key lists -------------------------------------------------------------------------------
-
-std::vector<std::string_view> keyNames(std::initializer_list<std::span<const KeySpec>> lists) {
-  std::vector<std::string_view> names;
-  for (std::span<const KeySpec> list : lists) {
-    for (const KeySpec& k : list) names.push_back(k.name);
-  }
-  return names;
-}
-
 namespace {
 
 std::size_t editDistance(std::string_view a, std::string_view b) {
