@@ -14,7 +14,9 @@
 // any number of processes may read one channel while its writer publishes.
 #pragma once
 
+#include <fogbeam/ipc/shm_mapping.hpp>
 #include <fogbeam/util/result.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <array>
 #include <cstddef>
@@ -79,9 +81,10 @@ class ShmWriter {
  private:
   ShmWriter() = default;
   std::string name_;
-  int fd_ = -1;
-  std::byte* base_ = nullptr;
-  std::size_t size_ = 0;
+  // Destroyed in reverse order: unmap, close, then unlink the name (once: ShmName).
+  ShmName segment_;
+  UniqueFd fd_;
+  ShmMapping mapping_;
   std::uint32_t slots_ = 0, next_ = 0;
   std::uint64_t generation_ = 0;
   bool replacedStale_ = false;
@@ -122,8 +125,7 @@ class ShmReader {
  private:
   ShmReader() = default;
   std::string name_;
-  const std::byte* base_ = nullptr;
-  std::size_t size_ = 0;
+  ShmMapping mapping_;  ///< read-only
   std::uint32_t width_ = 0, height_ = 0, format_ = 0, slots_ = 0;
   std::uint64_t firstSlot_ = 0, stride_ = 0, pixelsOffset_ = 0, pixelsBytes_ = 0, distanceOffset_ = 0;
   std::uint64_t generation_ = 0;
