@@ -27,6 +27,10 @@ namespace fogbeam::ipc {
 namespace {
 
 constexpr std::uint32_t kAttempts = 8;  // reader retries before reporting Busy
+// Slots per channel (docs/shm.md: slot count 3–16). The header's `latest` word keeps the slot
+// index in its low 8 bits, beside the frame number.
+constexpr std::uint32_t kMinSlots = 3, kMaxSlots = 16;
+static_assert(kMaxSlots <= 0xFF + 1, "the slot index must fit in the low 8 bits of `latest`");
 
 std::string sysError(const std::string& what) { return what + ": " + std::strerror(errno); }
 
@@ -70,9 +74,9 @@ void writeMeta(std::byte* slot, const FrameMeta& m) {
   put(slot, FOGBEAM_SLOT_FRAME, m.frame);
   put(slot, FOGBEAM_SLOT_SIM_TIME, m.sim_time_s);
   for (std::size_t k = 0; k < 3; ++k) put(slot, FOGBEAM_SLOT_POSE + 8 * k, m.position_m[k]);
-  put(slot, FOGBEAM_SLOT_POSE + 24, m.yaw_deg);
-  put(slot, FOGBEAM_SLOT_POSE + 28, m.pitch_deg);
-  put(slot, FOGBEAM_SLOT_POSE + 32, m.roll_deg);
+  put(slot, FOGBEAM_SLOT_ORIENTATION, m.yaw_deg);
+  put(slot, FOGBEAM_SLOT_ORIENTATION + 4, m.pitch_deg);
+  put(slot, FOGBEAM_SLOT_ORIENTATION + 8, m.roll_deg);
   put(slot, FOGBEAM_SLOT_LIGHTS, m.lights);
   put(slot, FOGBEAM_SLOT_EGO_SEQ, m.ego_sequence);
   put(slot, FOGBEAM_SLOT_LAMP_SEQ, m.lamp_sequence);
@@ -94,9 +98,9 @@ FrameMeta readMeta(const std::byte* slot) {
   m.frame = get<std::uint64_t>(slot, FOGBEAM_SLOT_FRAME);
   m.sim_time_s = get<double>(slot, FOGBEAM_SLOT_SIM_TIME);
   for (std::size_t k = 0; k < 3; ++k) m.position_m[k] = get<double>(slot, FOGBEAM_SLOT_POSE + 8 * k);
-  m.yaw_deg = get<float>(slot, FOGBEAM_SLOT_POSE + 24);
-  m.pitch_deg = get<float>(slot, FOGBEAM_SLOT_POSE + 28);
-  m.roll_deg = get<float>(slot, FOGBEAM_SLOT_POSE + 32);
+  m.yaw_deg = get<float>(slot, FOGBEAM_SLOT_ORIENTATION);
+  m.pitch_deg = get<float>(slot, FOGBEAM_SLOT_ORIENTATION + 4);
+  m.roll_deg = get<float>(slot, FOGBEAM_SLOT_ORIENTATION + 8);
   m.lights = get<std::uint32_t>(slot, FOGBEAM_SLOT_LIGHTS);
   m.ego_sequence = get<std::uint32_t>(slot, FOGBEAM_SLOT_EGO_SEQ);
   m.lamp_sequence = get<std::uint32_t>(slot, FOGBEAM_SLOT_LAMP_SEQ);
@@ -198,7 +202,9 @@ Result<std::unique_ptr<ShmWriter>> ShmWriter::create(const ShmChannelOptions& o)
   if (bpp == 0) return Error{"shm channel '" + o.channel + "': unknown format " + std::to_string(o.format)};
   if (o.width == 0 || o.height == 0 || o.width > 16384 || o.height > 16384)
     return Error{"shm channel '" + o.channel + "': image size must be 1–16384 pixels per side"};
-  if (o.slots < 3 || o.slots > 16) return Error{"shm channel '" + o.channel + "': slots must be 3–16"};
+  if (o.slots < kMinSlots || o.slots > kMaxSlots)
+    return Error{"shm channel '" + o.channel + "': slots must be " + std::to_string(kMinSlots) + "–" +
+                 std::to_string(kMaxSlots)};
   // Every error return below destroys `w`: its members unmap, close and unlink what was made so
   // far, the segment's name once (ShmName).
   std::unique_ptr<ShmWriter> w(new ShmWriter());
