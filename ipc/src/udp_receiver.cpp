@@ -47,6 +47,7 @@ struct UdpReceiver::Impl {
   UdpReceiverOptions options;
   StateStore* store = nullptr;
   UniqueFd fd;                   // closed after the thread is joined (~UdpReceiver stops first)
+  std::uint16_t port = 0;        // bound (options.port may be 0), for the log
   std::vector<in_addr_t> allow;  // network byte order
   std::atomic<bool> stopping{false};
   std::thread thread;
@@ -97,7 +98,7 @@ struct UdpReceiver::Impl {
     ++errorsSinceLog;
     const auto now = Clock::now();
     if (now - lastErrorLog >= std::chrono::seconds(1)) {
-      spdlog::warn("udp: {} failed {} time(s) on port {}: {}", call, errorsSinceLog, options.port, std::strerror(error));
+      spdlog::warn("udp: {} failed {} time(s) on port {}: {}", call, errorsSinceLog, port, std::strerror(error));
       lastErrorLog = now;
       errorsSinceLog = 0;
     }
@@ -276,6 +277,7 @@ Result<std::unique_ptr<UdpReceiver>> UdpReceiver::start(const UdpReceiverOptions
     return Error{sysError("udp getsockname of " + where)};
   const std::uint16_t port = ntohs(bound.sin_port);
   Impl* raw = impl.get();
+  raw->port = port;
   try {
     raw->thread = std::thread([raw] { raw->run(); });
   } catch (const std::system_error& e) {
