@@ -3,7 +3,8 @@
 // ShmWriter (the fogbeam service, one per output channel) creates a POSIX shared-memory segment
 // "/fogbeam.<channel>" (mode 0600, or 0660 with group access), publishes frames into a ring of
 // slots with a seqlock per slot, keeps a heartbeat, and marks the channel closed and unlinks it
-// on destruction. A segment left by a crashed writer (dead pid or heartbeat older than 2 s) is
+// on destruction (unless another writer has replaced it as stale meanwhile: ShmName,
+// shm_mapping.hpp). A segment left by a crashed writer (dead pid or heartbeat older than 2 s) is
 // replaced; one whose writer is alive is refused with the writer's pid.
 //
 // ShmReader (image generators, tests, `fogbeam view`; the C SDK in fogbeam_host.h wraps it)
@@ -62,7 +63,7 @@ struct FrameMeta {
 class ShmWriter {
  public:
   [[nodiscard]] static Result<std::unique_ptr<ShmWriter>> create(const ShmChannelOptions& options);
-  ~ShmWriter();  ///< marks the channel closed, unmaps and unlinks
+  ~ShmWriter();  ///< marks the channel closed, unmaps, closes and unlinks (once; only its own segment)
   ShmWriter(const ShmWriter&) = delete;
   ShmWriter& operator=(const ShmWriter&) = delete;
 
