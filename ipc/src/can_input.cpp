@@ -1,6 +1,7 @@
 // fogbeam — CAN input (fogbeam/ipc/can_input.hpp).
 #include <fogbeam/ipc/can_input.hpp>
 #include <fogbeam/ipc/cannelloni.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <spdlog/spdlog.h>
 
@@ -19,7 +20,9 @@
 #include <cerrno>
 #include <cstring>
 #include <mutex>
+#include <system_error>
 #include <thread>
+#include <utility>
 
 namespace fogbeam::ipc {
 
@@ -144,8 +147,10 @@ void CanDecoder::publish(StateStore& store, Clock::time_point now, const std::st
 // ---------------------------------------------------------------------------------------------
 namespace {
 
-// A thread that feeds frames from `next(now)` (returns false to stop) into the decoder, and
-// publishes after every frame batch and every poll tick (for the hold/fallback timing).
+// A thread that runs `loop(*this)`, which feeds frames into the decoder and publishes after every
+// frame batch and every poll tick (for the hold/fallback timing) until stopping(). The loop owns
+// what it reads from (a socket's UniqueFd, moved into it): that is closed when the loop ends, or
+// at once when the thread cannot be started.
 class ThreadSource final : public CanSource {
  public:
   ThreadSource(CanDecoder decoder, StateStore& store, std::string source)
@@ -153,11 +158,16 @@ class ThreadSource final : public CanSource {
   ~ThreadSource() override { stop(); }
 
   template <class Loop>
-  void run(Loop loop) {
-    thread_ = std::thread([this, loop]() mutable {
-      loop(*this);
-      finished_ = true;
-    });
+  [[nodiscard]] Status run(Loop loop) {
+    try {
+      thread_ = std::thread([this, loop = std::move(loop)]() mutable {
+        loop(*this);
+        finished_ = true;
+      });
+    } catch (const std::system_error& e) {
+      return Error{source_ + ": cannot start the receive thread: " + e.what()};
+    }
+    return Ok{};
   }
   void stop() override {
     stopping_ = true;
@@ -165,7 +175,9 @@ class ThreadSource final : public CanSource {
   }
   [[nodiscard]] CanStats stats() const override {
     std::lock_guard<std::mutex> lock(mutex_);
-    return decoder_.stats();
+    CanStats s = decoder_.stats();
+    s.receive_errors = receiveErrors_.load();
+    return s;
   }
   [[nodiscard]] bool finished() const override { return finished_; }
 
@@ -178,6 +190,30 @@ class ThreadSource final : public CanSource {
     std::lock_guard<std::mutex> lock(mutex_);
     decoder_.publish(store_, Clock::now(), source_);
   }
+  // A poll/read/recv that failed for another reason than "nothing to read" or a signal: counted
+  // and logged at most once per second with the count since the last line (as the UDP input's
+  // drops); the loop goes on. Loop thread only.
+  void receiveError(const char* call, int error) {
+    ++receiveErrors_;
+    ++errorsSinceLog_;
+    const auto now = Clock::now();
+    if (now - lastErrorLog_ >= std::chrono::seconds(1)) {
+      spdlog::warn("{}: {} failed {} time(s): {}", source_, call, errorsSinceLog_, std::strerror(error));
+      lastErrorLog_ = now;
+      errorsSinceLog_ = 0;
+    }
+  }
+  // poll() on `fd` for up to kPollMs; true when there is something to read. A failure is
+  // counted and followed by a wait of kPollMs, so that a lasting one cannot spin the loop.
+  bool waitReadable(int fd) {
+    pollfd p{fd, POLLIN, 0};
+    const int ready = ::poll(&p, 1, kPollMs);
+    if (ready < 0 && errno != EINTR) {
+      receiveError("poll", errno);
+      std::this_thread::sleep_for(std::chrono::milliseconds(kPollMs));
+    }
+    return ready > 0;
+  }
 
  private:
   CanDecoder decoder_;
@@ -186,46 +222,44 @@ class ThreadSource final : public CanSource {
   mutable std::mutex mutex_;
   std::thread thread_;
   std::atomic<bool> stopping_{false}, finished_{false};
+  std::atomic<std::uint64_t> receiveErrors_{0};
+  Clock::time_point lastErrorLog_{};  // loop thread only
+  std::uint64_t errorsSinceLog_ = 0;  // loop thread only
 };
+
+bool transientReadError(int error) { return error == EAGAIN || error == EWOULDBLOCK || error == EINTR; }
 
 }  // namespace
 
 Result<std::unique_ptr<CanSource>> startSocketCan(const std::string& interface, CanDecoder decoder, StateStore& store) {
-  const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
-  if (fd < 0) return Error{sysError("SocketCAN unavailable: socket(PF_CAN, SOCK_RAW, CAN_RAW)")};
-  auto fail = [&](const std::string& what) -> Error {
-    Error e{sysError(what)};
-    ::close(fd);
-    return e;
-  };
-  if (interface.size() >= IFNAMSIZ) {
-    ::close(fd);
-    return Error{"SocketCAN interface name '" + interface + "' is too long"};
-  }
+  UniqueFd fd(::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW));
+  if (!fd) return Error{sysError("SocketCAN unavailable: socket(PF_CAN, SOCK_RAW, CAN_RAW)")};
+  auto fail = [](const std::string& what) -> Error { return Error{sysError(what)}; };
+  if (interface.size() >= IFNAMSIZ) return Error{"SocketCAN interface name '" + interface + "' is too long"};
   const int one = 1;
-  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &one, sizeof one) != 0) return fail("CAN_RAW_FD_FRAMES");
+  if (::setsockopt(fd.get(), SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &one, sizeof one) != 0) return fail("CAN_RAW_FD_FRAMES");
   // Kernel filters: only the mapped ids reach user space.
   std::vector<can_filter> filters;
   for (const auto& [id, ext] : decoder.ids())
     filters.push_back(can_filter{ext ? (id | CAN_EFF_FLAG) : id,
                                  ext ? (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_EFF_MASK) : (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_SFF_MASK)});
-  if (::setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
+  if (::setsockopt(fd.get(), SOL_CAN_RAW, CAN_RAW_FILTER, filters.data(),
                    static_cast<socklen_t>(filters.size() * sizeof(can_filter))) != 0)
     return fail("CAN_RAW_FILTER");
   ifreq ifr{};
   std::strncpy(ifr.ifr_name, interface.c_str(), IFNAMSIZ - 1);
-  if (::ioctl(fd, SIOCGIFINDEX, &ifr) != 0) return fail("SocketCAN interface " + interface);
+  if (::ioctl(fd.get(), SIOCGIFINDEX, &ifr) != 0) return fail("SocketCAN interface " + interface);
   sockaddr_can addr{};
   addr.can_family = AF_CAN;
   addr.can_ifindex = ifr.ifr_ifindex;
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return fail("bind " + interface);
+  if (::bind(fd.get(), reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return fail("bind " + interface);
   auto src = std::make_unique<ThreadSource>(std::move(decoder), store, "can " + interface);
-  src->run([fd](ThreadSource& self) {
+  const Status started = src->run([fd = std::move(fd)](ThreadSource& self) {
     canfd_frame raw{};
     while (!self.stopping()) {
-      pollfd p{fd, POLLIN, 0};
-      if (::poll(&p, 1, kPollMs) > 0) {
-        const ssize_t n = ::read(fd, &raw, sizeof raw);
+      if (self.waitReadable(fd.get())) {
+        const ssize_t n = ::read(fd.get(), &raw, sizeof raw);
+        if (n < 0 && !transientReadError(errno)) self.receiveError("read", errno);
         if (n == CAN_MTU || n == CANFD_MTU) {
           CanFrame f;
           f.extended = (raw.can_id & CAN_EFF_FLAG) != 0;
@@ -239,8 +273,8 @@ Result<std::unique_ptr<CanSource>> startSocketCan(const std::string& interface, 
       }
       self.tick();
     }
-    ::close(fd);
   });
+  if (!started) return started.error();
   return std::unique_ptr<CanSource>(std::move(src));
 }
 
@@ -251,27 +285,27 @@ Result<std::unique_ptr<CanSource>> startCannelloni(const std::string& bindAddres
   a.sin_port = htons(port);
   if (inet_pton(AF_INET, bindAddress.c_str(), &a.sin_addr) != 1)
     return Error{"cannelloni bind address '" + bindAddress + "' is not an IPv4 address"};
-  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return Error{sysError("cannelloni socket")};
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
-    Error e{sysError("cannelloni bind " + bindAddress + ":" + std::to_string(port))};
-    ::close(fd);
-    return e;
-  }
+  UniqueFd fd(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  if (!fd) return Error{sysError("cannelloni socket")};
+  const std::string where = bindAddress + ":" + std::to_string(port);
+  if (::bind(fd.get(), reinterpret_cast<sockaddr*>(&a), sizeof a) != 0)
+    return Error{sysError("cannelloni bind " + where)};
+  // The port actually bound (port 0 = any free one).
   sockaddr_in bound{};
   socklen_t len = sizeof bound;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&bound), &len);
+  if (::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&bound), &len) != 0)
+    return Error{sysError("cannelloni getsockname of " + where)};
   if (boundPort) *boundPort = ntohs(bound.sin_port);
   auto src = std::make_unique<ThreadSource>(std::move(decoder), store,
                                             "cannelloni " + bindAddress + ":" + std::to_string(ntohs(bound.sin_port)));
-  src->run([fd](ThreadSource& self) {
+  const Status started = src->run([fd = std::move(fd)](ThreadSource& self) {
     std::vector<std::uint8_t> buf(65536);
     std::uint64_t bad = 0;
     auto lastLog = Clock::time_point{};
     while (!self.stopping()) {
-      pollfd p{fd, POLLIN, 0};
-      if (::poll(&p, 1, kPollMs) > 0) {
-        const ssize_t n = ::recv(fd, buf.data(), buf.size(), MSG_DONTWAIT);
+      if (self.waitReadable(fd.get())) {
+        const ssize_t n = ::recv(fd.get(), buf.data(), buf.size(), MSG_DONTWAIT);
+        if (n < 0 && !transientReadError(errno)) self.receiveError("recv", errno);
         if (n > 0) {
           auto packet = decodeCannelloni(std::span<const std::uint8_t>(buf.data(), static_cast<std::size_t>(n)));
           if (packet) {
@@ -288,8 +322,8 @@ Result<std::unique_ptr<CanSource>> startCannelloni(const std::string& bindAddres
       }
       self.tick();
     }
-    ::close(fd);
   });
+  if (!started) return started.error();
   return std::unique_ptr<CanSource>(std::move(src));
 }
 
@@ -298,7 +332,7 @@ Result<std::unique_ptr<CanSource>> startCandumpReplay(const std::string& path, d
   auto lines = loadCandump(path);
   if (!lines) return lines.error();
   auto src = std::make_unique<ThreadSource>(std::move(decoder), store, "candump " + path);
-  src->run([lines = std::move(lines).value(), speed](ThreadSource& self) {
+  const Status started = src->run([lines = std::move(lines).value(), speed](ThreadSource& self) {
     replayCandump(lines, speed, [&](const CandumpLine& l) {
       self.frame(l.frame);
       self.tick();
@@ -306,6 +340,7 @@ Result<std::unique_ptr<CanSource>> startCandumpReplay(const std::string& path, d
     });
     self.tick();
   });
+  if (!started) return started.error();
   return std::unique_ptr<CanSource>(std::move(src));
 }
 

@@ -1,5 +1,6 @@
 // fogbeam — UdpReceiver (fogbeam/ipc/udp_receiver.hpp).
 #include <fogbeam/ipc/udp_receiver.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <spdlog/spdlog.h>
 
@@ -14,6 +15,7 @@
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <system_error>
 #include <thread>
 #include <utility>
 
@@ -34,8 +36,9 @@ std::string sysError(const std::string& what) { return what + ": " + std::strerr
 
 std::string endpoint(const sockaddr_in& a) {
   char buf[INET_ADDRSTRLEN] = {};
-  inet_ntop(AF_INET, &a.sin_addr, buf, sizeof buf);
-  return std::string(buf) + ":" + std::to_string(ntohs(a.sin_port));
+  // Cannot fail for AF_INET into INET_ADDRSTRLEN bytes; if it did, the log still names the port.
+  const char* host = ::inet_ntop(AF_INET, &a.sin_addr, buf, sizeof buf) ? buf : "?";
+  return std::string(host) + ":" + std::to_string(ntohs(a.sin_port));
 }
 
 }  // namespace
@@ -43,7 +46,8 @@ std::string endpoint(const sockaddr_in& a) {
 struct UdpReceiver::Impl {
   UdpReceiverOptions options;
   StateStore* store = nullptr;
-  int fd = -1;
+  UniqueFd fd;                   // closed after the thread is joined (~UdpReceiver stops first)
+  std::uint16_t port = 0;        // bound (options.port may be 0), for the log
   std::vector<in_addr_t> allow;  // network byte order
   std::atomic<bool> stopping{false};
   std::thread thread;
@@ -63,10 +67,9 @@ struct UdpReceiver::Impl {
   // Rate-limited log: per reason, the time of the last line and the drops since.
   std::array<Clock::time_point, kDropReasonCount> lastLog{};
   std::array<std::uint64_t, kDropReasonCount> sinceLog{};
-
-  ~Impl() {
-    if (fd >= 0) ::close(fd);
-  }
+  // The same for failing system calls in the loop (receiveError()).
+  Clock::time_point lastErrorLog{};
+  std::uint64_t errorsSinceLog = 0;
 
   void drop(DropReason r, std::string_view field, const sockaddr_in& from) {
     const auto i = static_cast<std::size_t>(r);
@@ -81,6 +84,23 @@ struct UdpReceiver::Impl {
                    endpoint(from), field);
       lastLog[i] = now;
       sinceLog[i] = 0;
+    }
+  }
+
+  // A poll or recvfrom that failed for another reason than "nothing (more) to read" or a signal:
+  // counted and logged like a drop (at most once per second, with the count since the last line);
+  // the loop goes on, as it does for anything the network sends.
+  void receiveError(const char* call, int error) {
+    {
+      std::lock_guard<std::mutex> lock(statsMutex);
+      ++stats.receive_errors;
+    }
+    ++errorsSinceLog;
+    const auto now = Clock::now();
+    if (now - lastErrorLog >= std::chrono::seconds(1)) {
+      spdlog::warn("udp: {} failed {} time(s) on port {}: {}", call, errorsSinceLog, port, std::strerror(error));
+      lastErrorLog = now;
+      errorsSinceLog = 0;
     }
   }
 
@@ -150,8 +170,13 @@ struct UdpReceiver::Impl {
   void run() {
     std::vector<std::uint8_t> buf(kMaxDatagram + 1);  // one more: an oversized datagram is detectable
     while (!stopping.load(std::memory_order_relaxed)) {
-      pollfd p{fd, POLLIN, 0};
+      pollfd p{fd.get(), POLLIN, 0};
       const int ready = ::poll(&p, 1, kPollMs);
+      if (ready < 0 && errno != EINTR) {
+        receiveError("poll", errno);
+        // It returned at once: wait as long as a timeout would, so a lasting failure cannot spin.
+        std::this_thread::sleep_for(std::chrono::milliseconds(kPollMs));
+      }
       if (ready <= 0) {
         if (store) store->expire(Clock::now());
         continue;
@@ -159,8 +184,12 @@ struct UdpReceiver::Impl {
       for (;;) {
         sockaddr_in from{};
         socklen_t len = sizeof from;
-        const ssize_t n = ::recvfrom(fd, buf.data(), buf.size(), MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&from), &len);
-        if (n < 0) break;  // EAGAIN: drained (other errors: poll again)
+        const ssize_t n =
+            ::recvfrom(fd.get(), buf.data(), buf.size(), MSG_DONTWAIT, reinterpret_cast<sockaddr*>(&from), &len);
+        if (n < 0) {  // EAGAIN: drained; EINTR or another error: poll again
+          if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) receiveError("recvfrom", errno);
+          break;
+        }
         const auto now = Clock::now();
         {
           std::lock_guard<std::mutex> lock(statsMutex);
@@ -216,33 +245,44 @@ Result<std::unique_ptr<UdpReceiver>> UdpReceiver::start(const UdpReceiverOptions
   const std::string bindHost = options.multicast_group.empty() ? options.bind_address : options.multicast_group;
   if (inet_pton(AF_INET, bindHost.c_str(), &bindAddr.sin_addr) != 1)
     return Error{"udp bind address '" + bindHost + "' is not an IPv4 address"};
-  impl->fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (impl->fd < 0) return Error{sysError("udp socket")};
+  impl->fd.reset(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  if (!impl->fd) return Error{sysError("udp socket")};
+  const std::string where = bindHost + ":" + std::to_string(options.port);
   // Several members of one multicast group may run on one machine (one process per screen):
   // they share the port. A unicast port is exclusive, so that a second instance fails loudly
   // instead of silently taking half of the datagrams.
   if (!options.multicast_group.empty()) {
     const int one = 1;
-    ::setsockopt(impl->fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (::setsockopt(impl->fd.get(), SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0)
+      return Error{sysError("udp SO_REUSEADDR on " + where)};
   }
-  ::setsockopt(impl->fd, SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes, sizeof options.receive_buffer_bytes);
-  const std::string where = bindHost + ":" + std::to_string(options.port);
-  if (::bind(impl->fd, reinterpret_cast<const sockaddr*>(&bindAddr), sizeof bindAddr) != 0)
+  // The kernel caps the request at net.core.rmem_max without failing; a failure is a real one.
+  if (::setsockopt(impl->fd.get(), SOL_SOCKET, SO_RCVBUF, &options.receive_buffer_bytes,
+                   sizeof options.receive_buffer_bytes) != 0)
+    return Error{sysError("udp SO_RCVBUF of " + std::to_string(options.receive_buffer_bytes) + " bytes on " + where)};
+  if (::bind(impl->fd.get(), reinterpret_cast<const sockaddr*>(&bindAddr), sizeof bindAddr) != 0)
     return Error{sysError("udp bind " + where)};
   if (!options.multicast_group.empty()) {
     ip_mreq mreq{};
     mreq.imr_multiaddr = bindAddr.sin_addr;
     if (inet_pton(AF_INET, options.multicast_interface.c_str(), &mreq.imr_interface) != 1)
       return Error{"udp multicast interface '" + options.multicast_interface + "' is not an IPv4 address"};
-    if (::setsockopt(impl->fd, IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) != 0)
+    if (::setsockopt(impl->fd.get(), IPPROTO_IP, IP_ADD_MEMBERSHIP, &mreq, sizeof mreq) != 0)
       return Error{sysError("udp join " + options.multicast_group + " on " + options.multicast_interface)};
   }
+  // The port actually bound (options.port 0 = any free one).
   sockaddr_in bound{};
   socklen_t len = sizeof bound;
-  ::getsockname(impl->fd, reinterpret_cast<sockaddr*>(&bound), &len);
+  if (::getsockname(impl->fd.get(), reinterpret_cast<sockaddr*>(&bound), &len) != 0)
+    return Error{sysError("udp getsockname of " + where)};
   const std::uint16_t port = ntohs(bound.sin_port);
   Impl* raw = impl.get();
-  raw->thread = std::thread([raw] { raw->run(); });
+  raw->port = port;
+  try {
+    raw->thread = std::thread([raw] { raw->run(); });
+  } catch (const std::system_error& e) {
+    return Error{"udp " + where + ": cannot start the receive thread: " + e.what()};
+  }
   spdlog::info("udp: listening on {}:{}{}", bindHost, port,
                options.allow.empty() ? "" : " (allow-list of " + std::to_string(options.allow.size()) + ")");
   return std::unique_ptr<UdpReceiver>(new UdpReceiver(std::move(impl), port));

@@ -1,20 +1,26 @@
 // Shared-memory channels: round trip, permissions, no torn frame under a fast writer, closed /
-// stale / live segments, reader errors, and the C SDK's example host against a live writer.
+// stale / live segments, reader errors, the owners of names and mappings, and the C SDK's example
+// host against a live writer.
 #include <fogbeam/fogbeam_host.h>
 #include <fogbeam/ipc/shm_channel.hpp>
+#include <fogbeam/ipc/shm_mapping.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
 #include <sys/mman.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <csignal>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <thread>
 
@@ -248,14 +254,13 @@ TEST(ShmChannel, ASlotBeingWrittenIsNeverReturned) {
   std::vector<std::byte> px(64 * 32 * 8, std::byte{1});
   (*w)->publish(FrameMeta{1}, px);  // slot 0
   // A second, writable mapping plays a writer stopped in the middle of slot 0.
-  const int fd = ::shm_open(("/fogbeam." + ch).c_str(), O_RDWR, 0);
-  ASSERT_GE(fd, 0);
+  const UniqueFd fd(::shm_open(("/fogbeam." + ch).c_str(), O_RDWR, 0));
+  ASSERT_TRUE(fd);
   struct stat st {};
-  ASSERT_EQ(::fstat(fd, &st), 0);
-  void* map = ::mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
-  ::close(fd);
-  ASSERT_NE(map, MAP_FAILED);
-  auto* seq = reinterpret_cast<std::uint64_t*>(static_cast<std::byte*>(map) + FOGBEAM_SHM_HEADER_SIZE + FOGBEAM_SLOT_SEQ);
+  ASSERT_EQ(::fstat(fd.get(), &st), 0);
+  auto map = ShmMapping::map(fd.get(), static_cast<std::size_t>(st.st_size), true, ch);
+  ASSERT_TRUE(map) << map.error().message;
+  auto* seq = reinterpret_cast<std::uint64_t*>(map->data() + FOGBEAM_SHM_HEADER_SIZE + FOGBEAM_SLOT_SEQ);
   const std::uint64_t even = *seq;
   EXPECT_EQ(even % 2, 0u);
   *seq = even + 1;  // odd: being written
@@ -265,7 +270,6 @@ TEST(ShmChannel, ASlotBeingWrittenIsNeverReturned) {
   EXPECT_GE((*r)->retries(), 8u);
   *seq = even;
   EXPECT_EQ((*r)->latest(m, out), ReadStatus::Ok);
-  ::munmap(map, static_cast<std::size_t>(st.st_size));
 }
 
 TEST(ShmChannel, ReaderSeesAClosedWriterAndAttachErrorsSayWhy) {
@@ -316,8 +320,132 @@ TEST(ShmChannel, LiveSegmentsAreRefusedStaleOnesReplaced) {
   ASSERT_TRUE(r2);
   EXPECT_NE((*r2)->generation(), oldGeneration);
   // Now free the "crashed" writer (its mapping is of the old, unlinked segment), so that the
-  // leak checker of the sanitizer build stays meaningful.
+  // leak checker of the sanitizer build stays meaningful. Its name is its replacement's now: it
+  // must leave that segment alone (ShmName's identity check).
   delete crashed;
+  EXPECT_EQ(::access(("/dev/shm/fogbeam." + ch).c_str(), F_OK), 0) << "the replaced writer unlinked its replacement";
+  auto r3 = ShmReader::attach(ch);
+  ASSERT_TRUE(r3) << r3.error().message;
+  EXPECT_EQ((*r3)->generation(), (*replacement)->generation());
+}
+
+// ShmName (shm_mapping.hpp): the name of a segment this process created is unlinked once, by
+// unlink() or the destructor; not when released; and not once another segment has taken the name.
+TEST(ShmChannel, ASegmentNameIsUnlinkedOnceAndOnlyWhileItIsOurs) {
+  const std::string name = "/fogbeam." + channelName("name");
+  auto exists = [&] { return ::access(("/dev/shm" + name).c_str(), F_OK) == 0; };
+  auto createSegment = [&] {
+    UniqueFd fd(::shm_open(name.c_str(), O_CREAT | O_EXCL | O_RDWR | O_CLOEXEC, 0600));
+    EXPECT_TRUE(fd) << std::strerror(errno);
+    return fd;
+  };
+  {
+    const UniqueFd fd = createSegment();
+    ShmName owner(name, fd.get());
+    EXPECT_EQ(owner.name(), name);
+    const Status first = owner.unlink();
+    EXPECT_TRUE(first) << first.error().message;
+    EXPECT_FALSE(exists());
+    EXPECT_FALSE(owner);
+    // Another writer creates the name again: neither a second unlink() nor the destructor may
+    // remove its segment.
+    const UniqueFd other = createSegment();
+    EXPECT_TRUE(owner.unlink());
+  }
+  EXPECT_TRUE(exists());
+  ASSERT_EQ(::shm_unlink(name.c_str()), 0);
+  {  // The destructor unlinks; a moved-from owner does not.
+    const UniqueFd fd = createSegment();
+    ShmName a(name, fd.get());
+    {
+      const ShmName b(std::move(a));
+      EXPECT_FALSE(a);  // NOLINT(bugprone-use-after-move): moved-from owns nothing, by contract
+      EXPECT_TRUE(exists());
+    }
+    EXPECT_FALSE(exists());
+  }
+  {  // Released: left in place.
+    const UniqueFd fd = createSegment();
+    ShmName owner(name, fd.get());
+    EXPECT_EQ(owner.release(), name);
+  }
+  EXPECT_TRUE(exists());
+  {  // A name replaced by another segment is left alone, and unlink() says why.
+    UniqueFd fd(::shm_open(name.c_str(), O_RDWR | O_CLOEXEC, 0));
+    ASSERT_TRUE(fd);
+    ShmName owner(name, fd.get());
+    ASSERT_EQ(::shm_unlink(name.c_str()), 0);
+    const UniqueFd replacement = createSegment();
+    const Status s = owner.unlink();
+    ASSERT_FALSE(s);
+    EXPECT_EQ(s.error().message, "shm_unlink " + name + ": the name refers to another writer's segment now: left alone");
+    EXPECT_TRUE(exists());
+  }
+  ASSERT_EQ(::shm_unlink(name.c_str()), 0);
+}
+
+// ShmMapping (shm_mapping.hpp): maps what it is asked to, says why it could not, and unmaps on
+// destruction (mincore(2) fails with ENOMEM for an address range that is not mapped).
+TEST(ShmChannel, AMappingIsUnmappedByItsOwner) {
+  const std::string name = "/fogbeam." + channelName("map");
+  const UniqueFd fd(::shm_open(name.c_str(), O_CREAT | O_EXCL | O_RDWR | O_CLOEXEC, 0600));
+  ASSERT_TRUE(fd);
+  const ShmName owner(name, fd.get());
+  const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  ASSERT_EQ(::ftruncate(fd.get(), static_cast<off_t>(page)), 0);
+  void* address = nullptr;
+  unsigned char resident = 0;
+  {
+    auto m = ShmMapping::map(fd.get(), page, true, name);
+    ASSERT_TRUE(m) << m.error().message;
+    EXPECT_EQ(m->size(), page);
+    m->data()[0] = std::byte{42};
+    address = m->data();
+    EXPECT_EQ(::mincore(address, page, &resident), 0);
+    ShmMapping moved = std::move(m).value();
+    EXPECT_EQ(moved.data(), address);
+  }
+  EXPECT_EQ(::mincore(address, page, &resident), -1);
+  EXPECT_EQ(errno, ENOMEM);
+  auto again = ShmMapping::map(fd.get(), page, false, name);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->data()[0], std::byte{42});  // the bytes live in the segment, not the mapping
+  EXPECT_TRUE(again->unmap());
+  EXPECT_FALSE(*again);
+  const auto bad = ShmMapping::map(-1, page, false, "nothing");
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().message,
+            "mmap nothing (" + std::to_string(page) + " bytes): " + std::strerror(EBADF));
+}
+
+// A writer that cannot give its new segment its size (ftruncate fails: here the file-size limit,
+// in a child process) reports it and leaves no segment behind: the half-made one is unlinked by its
+// owner, once.
+TEST(ShmChannel, AWriterThatCannotSizeItsSegmentLeavesNoneBehind) {
+  const std::string ch = channelName("trunc");
+  const pid_t child = ::fork();
+  if (child == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);  // the limit also sends SIGXFSZ; ftruncate then fails with EFBIG
+    rlimit limit{};
+    ::getrlimit(RLIMIT_FSIZE, &limit);
+    limit.rlim_cur = 4096;
+    if (::setrlimit(RLIMIT_FSIZE, &limit) != 0) ::_exit(10);
+    auto w = ShmWriter::create(opts(ch));
+    if (w) ::_exit(11);
+    const std::string expected = "ftruncate /fogbeam." + ch + " to ";
+    if (w.error().message.rfind(expected, 0) != 0) ::_exit(12);
+    if (w.error().message.find(std::strerror(EFBIG)) == std::string::npos) ::_exit(13);
+    ::_exit(::access(("/dev/shm/fogbeam." + ch).c_str(), F_OK) == 0 ? 14 : 0);
+  }
+  ASSERT_GT(child, 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "10 setrlimit, 11 created, 12/13 message, 14 segment left behind";
+  EXPECT_NE(::access(("/dev/shm/fogbeam." + ch).c_str(), F_OK), 0);
+  auto w = ShmWriter::create(opts(ch));  // and the name is free for a writer that can
+  ASSERT_TRUE(w) << w.error().message;
+  EXPECT_FALSE((*w)->replacedStale());
 }
 
 // The C SDK end to end: the example host (plain C) reads 5 frames from a live writer.

@@ -2,6 +2,7 @@
 // the allow-list, sequence handling, multicast (skipped where the kernel cannot loop it back).
 // Every test binds port 0 (any free port) and stops by itself.
 #include <fogbeam/ipc/udp_receiver.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <gtest/gtest.h>
 
@@ -20,15 +21,11 @@ namespace {
 // A sending socket bound to `from` (any 127/8 address is local on Linux).
 class Sender {
  public:
-  explicit Sender(const char* from = "127.0.0.1") {
-    fd_ = ::socket(AF_INET, SOCK_DGRAM, 0);
+  explicit Sender(const char* from = "127.0.0.1") : fd_(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0)) {
     sockaddr_in a{};
     a.sin_family = AF_INET;
     inet_pton(AF_INET, from, &a.sin_addr);
-    ok_ = fd_ >= 0 && ::bind(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
-  }
-  ~Sender() {
-    if (fd_ >= 0) ::close(fd_);
+    ok_ = fd_ && ::bind(fd_.get(), reinterpret_cast<sockaddr*>(&a), sizeof a) == 0;
   }
   bool ok() const { return ok_; }
   void send(const std::vector<std::uint8_t>& b, std::uint16_t port, const char* to = "127.0.0.1") {
@@ -36,12 +33,12 @@ class Sender {
     a.sin_family = AF_INET;
     a.sin_port = htons(port);
     inet_pton(AF_INET, to, &a.sin_addr);
-    ::sendto(fd_, b.data(), b.size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    ::sendto(fd_.get(), b.data(), b.size(), 0, reinterpret_cast<sockaddr*>(&a), sizeof a);
   }
-  int fd() const { return fd_; }
+  int fd() const { return fd_.get(); }
 
  private:
-  int fd_ = -1;
+  UniqueFd fd_;
   bool ok_ = false;
 };
 
@@ -126,6 +123,7 @@ TEST(UdpReceiver, CountsDropsByReasonAndKeepsRunning) {
   EXPECT_EQ(st.dropped[static_cast<std::size_t>(DropReason::OutOfOrder)], 1u);
   EXPECT_EQ(st.restarts, 1u);
   EXPECT_EQ(st.applied, 4u);
+  EXPECT_EQ(st.receive_errors, 0u);  // a drained socket (EAGAIN) is not an error
   EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kFrontFog);
 }
 

@@ -56,6 +56,9 @@ struct CanStats {
   std::uint64_t out_of_range = 0;  ///< mapped signals outside their DBC [min, max] (ignored)
   std::uint64_t fallbacks = 0;     ///< lamp signals that went silent and fell back
   std::uint64_t published = 0;     ///< state-store updates
+  /// Socket sources: poll/read/recv failures other than "nothing to read" or a signal (logged at
+  /// most once per second); the source goes on. Filled by CanSource::stats(), 0 in a CanDecoder's.
+  std::uint64_t receive_errors = 0;
 };
 
 class CanDecoder {

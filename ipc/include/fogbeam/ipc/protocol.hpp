@@ -158,4 +158,57 @@ inline constexpr std::size_t kTrafficObjectSize = 48;
 inline constexpr std::size_t kEnvironmentSize = 28;
 inline constexpr std::size_t kFrameRequestSize = 8;
 
+/// Byte offsets of every field, as in docs/protocol.md's tables: the header's from the start of
+/// the datagram, a payload's from the end of the header, a traffic object's from the object's
+/// start, a pose's from the pose's start (at 0 in the ego state, at kObjectPose in an object).
+/// decode() reads at these offsets; encode() writes the fields in this order, one after the
+/// other, and protocol.cpp checks at compile time that each field starts where the one before it
+/// ends and that the offsets are the documented ones. tests/ipc/test_layout_docs.cpp compares
+/// them with the document's tables at run time.
+namespace wire {
+// Header (24 bytes).
+inline constexpr std::size_t kHeaderMagic = 0;          // u32
+inline constexpr std::size_t kHeaderVersion = 4;        // u16
+inline constexpr std::size_t kHeaderType = 6;           // u16
+inline constexpr std::size_t kHeaderPayloadLength = 8;  // u32
+inline constexpr std::size_t kHeaderSequence = 12;      // u32
+inline constexpr std::size_t kHeaderSimTime = 16;       // f64, s
+// Pose (36 bytes), inside the ego state and a traffic object.
+inline constexpr std::size_t kPoseX = 0;       // f64, m
+inline constexpr std::size_t kPoseY = 8;       // f64, m
+inline constexpr std::size_t kPoseZ = 16;      // f64, m
+inline constexpr std::size_t kPoseYaw = 24;    // f32, deg
+inline constexpr std::size_t kPosePitch = 28;  // f32, deg
+inline constexpr std::size_t kPoseRoll = 32;   // f32, deg
+inline constexpr std::size_t kPoseSize = 36;
+// Ego state (type 1).
+inline constexpr std::size_t kEgoPose = 0;    // pose
+inline constexpr std::size_t kEgoSpeed = 36;  // f32, m/s
+// Lamp state (type 2).
+inline constexpr std::size_t kLampLights = 0;    // u32, light:: bits
+inline constexpr std::size_t kLampBending = 4;   // f32, deg
+inline constexpr std::size_t kLampReserved = 8;  // u32, 0
+// Traffic list (type 3): count, flags, then count objects of kTrafficObjectSize.
+inline constexpr std::size_t kTrafficCount = 0;    // u16
+inline constexpr std::size_t kTrafficFlags = 2;    // u16
+inline constexpr std::size_t kTrafficObjects = 4;  // object 0
+// Traffic object.
+inline constexpr std::size_t kObjectId = 0;            // u32
+inline constexpr std::size_t kObjectVehicleClass = 4;  // u16
+inline constexpr std::size_t kObjectFlags = 6;         // u16
+inline constexpr std::size_t kObjectPose = 8;          // pose
+inline constexpr std::size_t kObjectLights = 44;       // u32, light:: bits
+// Environment (type 4).
+inline constexpr std::size_t kEnvVisibility = 0;       // f32, m
+inline constexpr std::size_t kEnvExtinction = 4;       // f32, 1/m
+inline constexpr std::size_t kEnvAlbedo = 8;           // f32
+inline constexpr std::size_t kEnvPhase = 12;           // u8, PhaseCode
+inline constexpr std::size_t kEnvReserved = 13;        // u8 ×3, 0
+inline constexpr std::size_t kEnvG = 16;               // f32
+inline constexpr std::size_t kEnvDropletDiameter = 20; // f32, µm
+inline constexpr std::size_t kEnvAmbient = 24;         // f32, cd/m²
+// Frame request (type 5).
+inline constexpr std::size_t kFrameNumber = 0;  // u64
+}  // namespace wire
+
 }  // namespace fogbeam::ipc

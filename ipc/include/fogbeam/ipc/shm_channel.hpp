@@ -3,7 +3,8 @@
 // ShmWriter (the fogbeam service, one per output channel) creates a POSIX shared-memory segment
 // "/fogbeam.<channel>" (mode 0600, or 0660 with group access), publishes frames into a ring of
 // slots with a seqlock per slot, keeps a heartbeat, and marks the channel closed and unlinks it
-// on destruction. A segment left by a crashed writer (dead pid or heartbeat older than 2 s) is
+// on destruction (unless another writer has replaced it as stale meanwhile: ShmName,
+// shm_mapping.hpp). A segment left by a crashed writer (dead pid or heartbeat older than 2 s) is
 // replaced; one whose writer is alive is refused with the writer's pid.
 //
 // ShmReader (image generators, tests, `fogbeam view`; the C SDK in fogbeam_host.h wraps it)
@@ -14,7 +15,9 @@
 // any number of processes may read one channel while its writer publishes.
 #pragma once
 
+#include <fogbeam/ipc/shm_mapping.hpp>
 #include <fogbeam/util/result.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <array>
 #include <cstddef>
@@ -60,7 +63,7 @@ struct FrameMeta {
 class ShmWriter {
  public:
   [[nodiscard]] static Result<std::unique_ptr<ShmWriter>> create(const ShmChannelOptions& options);
-  ~ShmWriter();  ///< marks the channel closed, unmaps and unlinks
+  ~ShmWriter();  ///< marks the channel closed, unmaps, closes and unlinks (once; only its own segment)
   ShmWriter(const ShmWriter&) = delete;
   ShmWriter& operator=(const ShmWriter&) = delete;
 
@@ -79,9 +82,10 @@ class ShmWriter {
  private:
   ShmWriter() = default;
   std::string name_;
-  int fd_ = -1;
-  std::byte* base_ = nullptr;
-  std::size_t size_ = 0;
+  // Destroyed in reverse order: unmap, close, then unlink the name (once: ShmName).
+  ShmName segment_;
+  UniqueFd fd_;
+  ShmMapping mapping_;
   std::uint32_t slots_ = 0, next_ = 0;
   std::uint64_t generation_ = 0;
   bool replacedStale_ = false;
@@ -122,8 +126,7 @@ class ShmReader {
  private:
   ShmReader() = default;
   std::string name_;
-  const std::byte* base_ = nullptr;
-  std::size_t size_ = 0;
+  ShmMapping mapping_;  ///< read-only
   std::uint32_t width_ = 0, height_ = 0, format_ = 0, slots_ = 0;
   std::uint64_t firstSlot_ = 0, stride_ = 0, pixelsOffset_ = 0, pixelsBytes_ = 0, distanceOffset_ = 0;
   std::uint64_t generation_ = 0;

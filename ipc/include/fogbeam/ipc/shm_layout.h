@@ -60,6 +60,7 @@
 #define FOGBEAM_SLOT_FRAME 8            /* u64 frame number (from 1) */
 #define FOGBEAM_SLOT_SIM_TIME 16        /* f64 s: the input state's simulation time */
 #define FOGBEAM_SLOT_POSE 24            /* f64 ×3 x, y, z (m) then f32 ×3 yaw, pitch, roll (deg): the eye used */
+#define FOGBEAM_SLOT_ORIENTATION 48     /* f32 ×3 yaw, pitch, roll (deg): the second half of the pose */
 #define FOGBEAM_SLOT_LIGHTS 60          /* u32: ego light bits used (docs/protocol.md) */
 #define FOGBEAM_SLOT_EGO_SEQ 64         /* u32: sequence number of the ego-state message used */
 #define FOGBEAM_SLOT_LAMP_SEQ 68        /* u32: of the lamp-state message used */

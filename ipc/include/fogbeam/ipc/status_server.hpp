@@ -11,8 +11,10 @@
 #pragma once
 
 #include <fogbeam/util/result.hpp>
+#include <fogbeam/util/unique_fd.hpp>
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -30,6 +32,9 @@ struct StatusServerOptions {
 
 struct StatusServerStats {
   std::uint64_t requests = 0, replies = 0, ignored = 0, rate_limited = 0;
+  /// poll/recvfrom/sendto failures (other than "nothing to read" or a signal), logged at most once
+  /// per second; the server goes on.
+  std::uint64_t errors = 0;
 };
 
 class StatusServer {
@@ -46,12 +51,15 @@ class StatusServer {
  private:
   StatusServer() = default;
   void run();
+  void socketError(const char* call, int error);  // server thread: count, rate-limited log
   StatusServerOptions options_;
   std::function<std::string()> reply_;
-  int fd_ = -1;
+  UniqueFd fd_;
   std::uint16_t port_ = 0;
   std::atomic<bool> stop_{false};
-  std::atomic<std::uint64_t> requests_{0}, replies_{0}, ignored_{0}, limited_{0};
+  std::atomic<std::uint64_t> requests_{0}, replies_{0}, ignored_{0}, limited_{0}, errors_{0};
+  std::chrono::steady_clock::time_point lastErrorLog_{};  // server thread only
+  std::uint64_t errorsSinceLog_ = 0;                      // server thread only
   std::thread thread_;
 };
 

@@ -46,6 +46,9 @@ struct UdpStats {
   std::array<std::uint64_t, kDropReasonCount> dropped{};  ///< index = DropReason
   std::uint64_t restarts = 0;   ///< sender restarts detected from sequence numbers
   std::uint64_t traffic_refused = 0;  ///< objects refused by a full state store
+  /// poll/recvfrom failures other than "nothing to read" or a signal (logged at most once per
+  /// second, like drops); the receiver goes on.
+  std::uint64_t receive_errors = 0;
   [[nodiscard]] std::uint64_t droppedTotal() const noexcept;
 };
 
