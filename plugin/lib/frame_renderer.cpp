@@ -425,7 +425,7 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   const TableKey want = m.wantedTables(state);
   const auto tw = Clock::now();
   if (Status s = m.updateTables(ego, want, wait); !s) return s;
-  out.table_wait_ms = ms(tw, Clock::now());
+  out.timings.table_wait_ms = ms(tw, Clock::now());
   out.pending = !(m.current == want);
 
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
@@ -458,29 +458,27 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   m.compositeAndPack(scene.fog, layers, out);
   const auto tE = Clock::now();
 
-  ipc::FrameMeta& meta = out.meta;
-  meta = ipc::FrameMeta{};
-  meta.sim_time_s = state.ego.stamp.sim_time_s;
-  meta.position_m = {scene.camera.position_m.x, scene.camera.position_m.y, scene.camera.position_m.z};
-  meta.yaw_deg = ego.pose.yaw_deg;
-  meta.pitch_deg = ego.pose.pitch_deg;
-  meta.roll_deg = ego.pose.roll_deg;
-  meta.lights = lights;
-  meta.ego_sequence = state.ego.stamp.sequence;
-  meta.lamp_sequence = state.lamps.stamp.sequence;
-  meta.environment_sequence = state.environment.stamp.sequence;
-  meta.traffic_count = trafficCount;
+  // What the renderer knows of the frame; the service adds its bookkeeping (wireMeta).
+  out.view.eye_m = scene.camera.position_m;
+  out.view.yaw_deg = ego.pose.yaw_deg;
+  out.view.pitch_deg = ego.pose.pitch_deg;
+  out.view.roll_deg = ego.pose.roll_deg;
+  const FrustumAngles f = m.vehicleCamera.frustum();
+  out.view.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
+  out.view.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
+  out.inputs.sim_time_s = state.ego.stamp.sim_time_s;
+  out.inputs.lights = lights;
+  out.inputs.ego_sequence = state.ego.stamp.sequence;
+  out.inputs.lamp_sequence = state.lamps.stamp.sequence;
+  out.inputs.environment_sequence = state.environment.stamp.sequence;
+  out.inputs.traffic_count = trafficCount;
   // With the GPU airlight, surfaces and airlight are one GL pass: its airlight draw's GPU time
   // (timer query) is the airlight, the rest of the pass's wall time the surface.
-  meta.surface_ms = std::max(0.0, ms(tS, tA) - gpuAirlightMs);
-  meta.airlight_ms = ms(tA, tF) + gpuAirlightMs;
-  meta.composite_ms = ms(tC, tE);
-  meta.total_ms = ms(t0, tE);
-  // The whole horizontal and vertical extent (off-axis views: left + right, up + down).
-  const FrustumAngles f = m.vehicleCamera.frustum();
-  meta.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
-  meta.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
-  out.effects_ms = m.config->effects.glow.enabled || m.config->effects.glare.enabled ? ms(tF, tC) : 0.0;
+  out.timings.surface_ms = std::max(0.0, ms(tS, tA) - gpuAirlightMs);
+  out.timings.airlight_ms = ms(tA, tF) + gpuAirlightMs;
+  out.timings.effects_ms = m.config->effects.glow.enabled || m.config->effects.glare.enabled ? ms(tF, tC) : 0.0;
+  out.timings.composite_ms = ms(tC, tE);
+  out.timings.total_ms = ms(t0, tE);
   return Ok{};
 }
 
