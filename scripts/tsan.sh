@@ -3,8 +3,8 @@
 # under concurrent writers), the UDP receiver, CAN input sources, shared-memory writer and readers
 # (the 2 s hammer test with two reader threads), the UDP → render → shm end-to-end path, the
 # plugin::Service tests (receivers, status server, heartbeat and frame loop; stop() joining them);
-# then `fogbeam serve`'s frame loop itself for 6 s with every one of its threads busy (UDP, CAN, status
-# server, heartbeat, table builds, airlight workers; tests/reliability/tsan_serve.py).
+# then `fogbeam serve`'s frame loop itself for 6 s with every one of its threads busy (UDP, CAN,
+# status server, heartbeat, table builds, airlight workers; tests/reliability/tsan_serve.py).
 # Builds the `tsan` preset; known non-races are suppressed in tests/tsan.supp (each explained).
 set -euo pipefail
 cd "$(dirname "$0")/.."
