@@ -1,11 +1,13 @@
 // fogbeam — one output view of the service (frame_renderer.hpp).
 #include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/ipc/shm_channel.hpp>
 #include <fogbeam/ipc/shm_layout.h>
 #include <fogbeam/plugin/frame_renderer.hpp>
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/pixel_pack.hpp>
 #include <fogbeam/render/surface.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <future>
@@ -172,6 +174,17 @@ struct ChannelRenderer::Impl {
     return s;
   }
 
+  // The stages of render(), in order (defined below, each with what it does).
+  [[nodiscard]] TableKey wantedTables(const ipc::SimSnapshot& state) const;
+  [[nodiscard]] Status updateTables(const ipc::EgoState& ego, const TableKey& want, bool wait);
+  [[nodiscard]] Status egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit);
+  [[nodiscard]] std::uint32_t trafficLamps(const ipc::SimSnapshot& state, ipc::Clock::time_point now, Scene& traffic,
+                                           Scene& lit) const;
+  [[nodiscard]] Status renderSurfaces(const Scene& lit, double& gpuAirlightMs);
+  [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out);
+  [[nodiscard]] Status renderEffects(const Scene& lit, RenderedFrame& out, EffectLayers& layers);
+  void compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out);
+
   Result<AirlightImageEvaluator> buildFor(const Scene& scene) const {
     auto e = AirlightImageEvaluator::build(scene, method, {}, config->threads, fast);
     if (!e) return e;
@@ -230,77 +243,86 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   return std::unique_ptr<ChannelRenderer>(new ChannelRenderer(std::move(impl)));
 }
 
-Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
-                               RenderedFrame& out) {
-  Impl& m = *impl_;
-  const auto t0 = Clock::now();
-  const ipc::EgoState& ego = state.ego.value;
-  const std::uint32_t lights =
-      state.lamps.stamp.valid ? state.lamps.value.lights : (ipc::light::kLowBeam | ipc::light::kPosition);
+// ---- render(), stage by stage ---------------------------------------------------------------
+// Each stage reads and writes the renderer's buffers (surface, air, glow, glare) and fills its
+// part of the RenderedFrame. The order of operations within and across stages is that of the
+// frames published so far (the surface pass before the airlight, which reads its distances; the
+// evaluator's lamp poses before its enable bits): frames stay byte for byte what they were.
 
-  // The tables this state wants.
+TableKey ChannelRenderer::Impl::wantedTables(const ipc::SimSnapshot& state) const {
+  // The environment message's fog, or the configuration's until one arrives. The bending angle
+  // matters only when an ego lamp bends; it is clamped to the configured limit and quantised
+  // (kBendingStepDeg), each step having its own view tables.
   TableKey want;
-  want.fog = state.environment.stamp.valid ? state.environment.value : environmentFrom(m.config->fog);
-  const double bend = std::clamp(static_cast<double>(state.lamps.value.bending_deg), -m.config->bending_max_deg,
-                                 m.config->bending_max_deg);
-  const bool anyBending = std::any_of(m.config->ego.lamps.begin(), m.config->ego.lamps.end(),
-                                      [](const RigLamp& r) { return r.bending; });
+  want.fog = state.environment.stamp.valid ? state.environment.value : environmentFrom(config->fog);
+  const double bend = std::clamp(static_cast<double>(state.lamps.value.bending_deg), -config->bending_max_deg,
+                                 config->bending_max_deg);
+  const bool anyBending =
+      std::any_of(config->ego.lamps.begin(), config->ego.lamps.end(), [](const RigLamp& r) { return r.bending; });
   want.bendingSteps = anyBending ? static_cast<int>(std::lround(bend / kBendingStepDeg)) : 0;
+  return want;
+}
 
-  const auto tw = Clock::now();
-  if (m.gpuAirlight) {
+Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const TableKey& want, bool wait) {
+  if (gpuAirlight) {
     // Nothing is tabulated on the CPU: every frame renders its own fog and bending at once.
-    m.current = want;
-  } else {
-    if (m.building.valid() && (wait || m.building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
-      auto built = m.building.get();
+    current = want;
+    return Ok{};
+  }
+  // A finished background build replaces the tables in use (awaited when `wait`).
+  if (building.valid() && (wait || building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
+    auto built = building.get();
+    if (!built) return built.error();
+    eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+    current = next;
+  }
+  if (!eval || !(current == want)) {
+    if (wait || !eval) {
+      // Lock-step, replay, and the very first frame: build here, the frame waits.
+      auto built = buildFor(sceneFor(ego, want));
       if (!built) return built.error();
-      m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
-      m.current = m.next;
-    }
-    if (!m.eval || !(m.current == want)) {
-      if (wait || !m.eval) {
-        auto built = m.buildFor(m.sceneFor(ego, want));
-        if (!built) return built.error();
-        m.eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
-        m.current = want;
-      } else if (!m.building.valid()) {
-        m.next = want;
-        m.building = std::async(std::launch::async, [&m, scene = m.sceneFor(ego, want)] { return m.buildFor(scene); });
-      }
+      eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+      current = want;
+    } else if (!building.valid()) {
+      // Free-running: one build at a time in the background; frames keep `current` meanwhile.
+      next = want;
+      building = std::async(std::launch::async, [this, scene = sceneFor(ego, want)] { return buildFor(scene); });
     }
   }
-  out.table_wait_ms = ms(tw, Clock::now());
-  out.pending = !(m.current == want);
+  return Ok{};
+}
 
-  // The scene: world lamps, then the ego rig's point lamps (all of them: the evaluator's view
-  // tables are per lamp, lamps that are off are switched off in it, not removed).
-  Scene scene = m.sceneFor(ego, m.current);
-  if (m.eval) {
-    if (Status s = m.eval->setLampPoses(scene); !s) return s;
+Status ChannelRenderer::Impl::egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit) {
+  // `scene` holds every world lamp and every ego point lamp, the evaluator's view tables being
+  // per lamp: it gets the frame's poses of all of them, and those that are off are switched off
+  // in it, not removed. `lit` gets the ones that are on (world lamps always are).
+  if (eval) {
+    if (Status s = eval->setLampPoses(scene); !s) return s;
   }
-  Scene lit = scene;  // the lamps that are on: for the surface pass, the GPU airlight, glow and glare
-  lit.lamps.clear();
-  const std::size_t worldCount = m.world.lamps.size();
+  const std::size_t worldCount = world.lamps.size();
   for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
     // All points of an aperture lamp switch together: by their rig lamp's light bit.
-    const std::uint32_t bit = i < worldCount ? 0u : m.config->ego.lamps[m.egoPoints[i - worldCount].rig_lamp].light_bit;
+    const std::uint32_t bit = i < worldCount ? 0u : config->ego.lamps[egoPoints[i - worldCount].rig_lamp].light_bit;
     const bool on = bit == 0 || (lights & bit) != 0;
-    if (m.eval) m.eval->setLampEnabled(i, on);
+    if (eval) eval->setLampEnabled(i, on);
     if (on) lit.lamps.push_back(scene.lamps[i]);
   }
-  // Traffic: each live object's rig lamps that its light bits switch on, at its pose.
-  Scene traffic = scene;
-  traffic.lamps.clear();
-  std::uint32_t trafficCount = 0;
+  return Ok{};
+}
+
+std::uint32_t ChannelRenderer::Impl::trafficLamps(const ipc::SimSnapshot& state, ipc::Clock::time_point now,
+                                                  Scene& traffic, Scene& lit) const {
+  // Each live object's rig lamps that its light bits switch on, at its pose. Returns the live
+  // objects, with or without a rig.
+  std::uint32_t count = 0;
   for (const ipc::TrafficEntry& e : state.traffic) {
     if (!state.live(e, now)) continue;
-    ++trafficCount;
-    const VehicleRig* rig = m.config->rigFor(e.object.vehicle_class);
+    ++count;
+    const VehicleRig* rig = config->rigFor(e.object.vehicle_class);
     if (!rig) continue;
     const Mat3 R = rotation(e.object.pose);
     const Vec3 O = position(e.object.pose);
-    for (const RigPoint& p : m.trafficPoints.at(rig)) {
+    for (const RigPoint& p : trafficPoints.at(rig)) {
       const RigLamp& r = rig->lamps[p.rig_lamp];
       if (r.light_bit != 0 && (e.object.lights & r.light_bit) == 0) continue;
       SceneLamp w = placeRigPoint(p, r, R, O, nullptr);
@@ -309,99 +331,154 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
       lit.lamps.push_back(std::move(w));
     }
   }
+  return count;
+}
 
-  const auto tS = Clock::now();
-  double gpuAirlightMs = 0.0;
-  if (m.gpuAirlight) {
+Status ChannelRenderer::Impl::renderSurfaces(const Scene& lit, double& gpuAirlightMs) {
+  gpuAirlightMs = 0.0;
+  if (gpuAirlight) {
     // Surfaces and the airlight of every lit lamp (world, ego, traffic) in one GL pass.
-    if (Status s = m.gl->render(lit, m.surface, m.gpuAir); !s) return Error{"GL surface pass: " + s.error().message};
-    gpuAirlightMs = m.gl->stats().airlight_ms;
-  } else if (!m.gl || !m.gl->render(lit, m.surface)) {
-    renderSurfacesCpu(lit, m.surface);
+    if (Status s = gl->render(lit, surface, gpuAir); !s) return Error{"GL surface pass: " + s.error().message};
+    gpuAirlightMs = gl->stats().airlight_ms;
+  } else if (!gl || !gl->render(lit, surface)) {
+    // CPU planes: no GL pass, or it failed this frame (then the planes stand in for it).
+    renderSurfacesCpu(lit, surface);
   }
-  const auto tA = Clock::now();
-  out.traffic_evaluated = 0;
-  if (m.gpuAirlight) {
-    m.air.width = m.surface.width;
-    m.air.height = m.surface.height;
-    m.air.rgb.swap(m.gpuAir);  // no copy; the GL pass refills the other buffer next frame
-    m.air.evaluated = static_cast<std::size_t>(m.surface.width) * static_cast<std::size_t>(m.surface.height);
-    out.airlight_evaluated = m.air.evaluated;
-  } else {
-    m.eval->evaluate(scene, m.surface, m.subsampling, m.air);
-    out.airlight_evaluated = m.air.evaluated;
-    if (!traffic.lamps.empty()) {
-      // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
-      // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
-      // per-lamp tables come from the evaluators' caches, the pool is the frame's.
-      auto te = AirlightImageEvaluator::build(traffic, m.method, AirlightOptions{}, m.eval->pool(), m.fast);
-      if (!te) return te.error();
-      te->evaluate(traffic, m.surface, m.subsampling, m.trafficAir);
-      out.traffic_evaluated = m.trafficAir.evaluated;
-      for (std::size_t k = 0; k < m.air.rgb.size(); ++k) m.air.rgb[k] += m.trafficAir.rgb[k];
-    }
-  }
-  const auto tF = Clock::now();
+  return Ok{};
+}
 
+Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out) {
+  out.traffic_evaluated = 0;
+  if (gpuAirlight) {
+    air.width = surface.width;
+    air.height = surface.height;
+    air.rgb.swap(gpuAir);  // no copy; the GL pass refills the other buffer next frame
+    air.evaluated = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);
+    out.airlight_evaluated = air.evaluated;
+    return Ok{};
+  }
+  // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
+  eval->evaluate(scene, surface, subsampling, air);
+  out.airlight_evaluated = air.evaluated;
+  if (!traffic.lamps.empty()) {
+    // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
+    // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
+    // per-lamp tables come from the evaluators' caches, the pool is the frame's.
+    auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, eval->pool(), fast);
+    if (!te) return te.error();
+    te->evaluate(traffic, surface, subsampling, trafficAir);
+    out.traffic_evaluated = trafficAir.evaluated;
+    for (std::size_t k = 0; k < air.rgb.size(); ++k) air.rgb[k] += trafficAir.rgb[k];
+  }
+  return Ok{};
+}
+
+Status ChannelRenderer::Impl::renderEffects(const Scene& lit, RenderedFrame& out, EffectLayers& layers) {
   // Glow and glare of the lamps that are on, seen from this frame's eye through its fog, with
   // the surfaces' distances (a lamp behind a surface has neither). The lit scene holds only the
   // lamps that are on; LampEffects leaves the ego's own (vehicle-mounted) lamps out itself.
   out.effects = LampEffectsReport{};
-  out.effects_ms = 0.0;
-  const SceneEffects& fx = m.config->effects;
-  EffectLayers layers;
-  if (fx.glow.enabled || fx.glare.enabled) {
-    const std::shared_ptr<ThreadPool>& pool = m.eval ? m.eval->pool() : m.gpuPool;
-    if (!m.effects || !(m.effectsKey == m.current) || m.effectsPool != pool.get()) {
-      // The old instance lives until the new one is built, so its single-scattering table
-      // (cached while someone holds it) is reused when the phase has not changed.
-      auto built = LampEffects::build(lit, fx.glow, fx.glare, pool);
-      if (!built) return built.error();
-      m.effects = std::move(built).value();
-      m.effectsKey = m.current;
-      m.effectsPool = pool.get();
-    }
-    m.effects->evaluate(lit, m.surface, m.glow, m.glare, out.effects);
-    layers.glow = &m.glow;
-    layers.glare = &m.glare;
+  const SceneEffects& fx = config->effects;
+  if (!fx.glow.enabled && !fx.glare.enabled) return Ok{};
+  const std::shared_ptr<ThreadPool>& pool = eval ? eval->pool() : gpuPool;
+  if (!effects || !(effectsKey == current) || effectsPool != pool.get()) {
+    // The old instance lives until the new one is built, so its single-scattering table
+    // (cached while someone holds it) is reused when the phase has not changed.
+    auto built = LampEffects::build(lit, fx.glow, fx.glare, pool);
+    if (!built) return built.error();
+    effects = std::move(built).value();
+    effectsKey = current;
+    effectsPool = pool.get();
   }
-  const auto tC = Clock::now();
-  if (fx.glow.enabled || fx.glare.enabled) out.effects_ms = ms(tF, tC);
-  compositeFrame(scene.fog, m.surface, m.air, out.layers, layers);
-  const std::size_t n = static_cast<std::size_t>(m.channel.width) * static_cast<std::size_t>(m.channel.height);
-  out.packed.resize(n * ipc::bytesPerPixel(m.format));
-  if (m.format == FOGBEAM_FORMAT_RGBA8_SRGB) {
-    packRgba8Srgb(out.layers.composite.data(), n, m.channel.exposure_ev, reinterpret_cast<std::uint8_t*>(out.packed.data()));
-  } else if (m.format == FOGBEAM_FORMAT_RGBA16F_LINEAR) {
+  effects->evaluate(lit, surface, glow, glare, out.effects);
+  layers.glow = &glow;
+  layers.glare = &glare;
+  return Ok{};
+}
+
+void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out) {
+  // Composite (surface · T + airlight, glow and glare added), then the channel's wire format:
+  // tone-mapped sRGB at the channel's exposure, linear cd/m², or the overlay (A = T).
+  compositeFrame(fog, surface, air, out.layers, layers);
+  const std::size_t n = static_cast<std::size_t>(channel.width) * static_cast<std::size_t>(channel.height);
+  out.packed.resize(n * ipc::bytesPerPixel(format));
+  if (format == FOGBEAM_FORMAT_RGBA8_SRGB) {
+    packRgba8Srgb(out.layers.composite.data(), n, channel.exposure_ev, reinterpret_cast<std::uint8_t*>(out.packed.data()));
+  } else if (format == FOGBEAM_FORMAT_RGBA16F_LINEAR) {
     packRgba16F(out.layers.composite.data(), nullptr, 1.0f, n, reinterpret_cast<std::uint16_t*>(out.packed.data()));
   } else {
     packRgba16F(out.layers.overlay.data(), out.layers.transmittance.data(), 1.0f, n,
                 reinterpret_cast<std::uint16_t*>(out.packed.data()));
   }
+}
+
+Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                               RenderedFrame& out) {
+  Impl& m = *impl_;
+  const auto t0 = Clock::now();
+  const ipc::EgoState& ego = state.ego.value;
+  // Until the first lamp state the ego drives with low beams and position lamps.
+  const std::uint32_t lights =
+      state.lamps.stamp.valid ? state.lamps.value.lights : (ipc::light::kLowBeam | ipc::light::kPosition);
+
+  // 1. Tables for the wanted fog and bending (built, awaited or still building).
+  const TableKey want = m.wantedTables(state);
+  const auto tw = Clock::now();
+  if (Status s = m.updateTables(ego, want, wait); !s) return s;
+  out.timings.table_wait_ms = ms(tw, Clock::now());
+  out.pending = !(m.current == want);
+
+  // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
+  // bending; `lit` = the lamps that are on (world, ego by light bits, traffic), for the surface
+  // pass, the GPU airlight, glow and glare; `traffic` = the traffic lamps that are on.
+  const Scene scene = m.sceneFor(ego, m.current);
+  Scene lit = scene;
+  lit.lamps.clear();
+  Scene traffic = scene;
+  traffic.lamps.clear();
+  if (Status s = m.egoAndWorldLamps(lights, scene, lit); !s) return s;
+  const std::uint32_t trafficCount = m.trafficLamps(state, now, traffic, lit);
+
+  // 3. Surfaces.
+  const auto tS = Clock::now();
+  double gpuAirlightMs = 0.0;
+  if (Status s = m.renderSurfaces(lit, gpuAirlightMs); !s) return s;
+
+  // 4. Airlight.
+  const auto tA = Clock::now();
+  if (Status s = m.renderAirlight(scene, traffic, out); !s) return s;
+
+  // 5. Glow and glare.
+  const auto tF = Clock::now();
+  EffectLayers layers;
+  if (Status s = m.renderEffects(lit, out, layers); !s) return s;
+
+  // 6. Composite and pack.
+  const auto tC = Clock::now();
+  m.compositeAndPack(scene.fog, layers, out);
   const auto tE = Clock::now();
 
-  ipc::FrameMeta& meta = out.meta;
-  meta = ipc::FrameMeta{};
-  meta.sim_time_s = state.ego.stamp.sim_time_s;
-  meta.position_m = {scene.camera.position_m.x, scene.camera.position_m.y, scene.camera.position_m.z};
-  meta.yaw_deg = ego.pose.yaw_deg;
-  meta.pitch_deg = ego.pose.pitch_deg;
-  meta.roll_deg = ego.pose.roll_deg;
-  meta.lights = lights;
-  meta.ego_sequence = state.ego.stamp.sequence;
-  meta.lamp_sequence = state.lamps.stamp.sequence;
-  meta.environment_sequence = state.environment.stamp.sequence;
-  meta.traffic_count = trafficCount;
+  // What the renderer knows of the frame; the service adds its bookkeeping (wireMeta).
+  out.view.eye_m = scene.camera.position_m;
+  out.view.yaw_deg = ego.pose.yaw_deg;
+  out.view.pitch_deg = ego.pose.pitch_deg;
+  out.view.roll_deg = ego.pose.roll_deg;
+  const FrustumAngles f = m.vehicleCamera.frustum();
+  out.view.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
+  out.view.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
+  out.inputs.sim_time_s = state.ego.stamp.sim_time_s;
+  out.inputs.lights = lights;
+  out.inputs.ego_sequence = state.ego.stamp.sequence;
+  out.inputs.lamp_sequence = state.lamps.stamp.sequence;
+  out.inputs.environment_sequence = state.environment.stamp.sequence;
+  out.inputs.traffic_count = trafficCount;
   // With the GPU airlight, surfaces and airlight are one GL pass: its airlight draw's GPU time
   // (timer query) is the airlight, the rest of the pass's wall time the surface.
-  meta.surface_ms = std::max(0.0, ms(tS, tA) - gpuAirlightMs);
-  meta.airlight_ms = ms(tA, tF) + gpuAirlightMs;
-  meta.composite_ms = ms(tC, tE);
-  meta.total_ms = ms(t0, tE);
-  // The whole horizontal and vertical extent (off-axis views: left + right, up + down).
-  const FrustumAngles f = m.vehicleCamera.frustum();
-  meta.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
-  meta.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
+  out.timings.surface_ms = std::max(0.0, ms(tS, tA) - gpuAirlightMs);
+  out.timings.airlight_ms = ms(tA, tF) + gpuAirlightMs;
+  out.timings.effects_ms = m.config->effects.glow.enabled || m.config->effects.glare.enabled ? ms(tF, tC) : 0.0;
+  out.timings.composite_ms = ms(tC, tE);
+  out.timings.total_ms = ms(t0, tE);
   return Ok{};
 }
 

@@ -1,7 +1,9 @@
 // `fogbeam replay` (issue 5): renders a scenario (docs/scenario.md) headless, frame by frame at a
-// fixed simulation rate, through the same ChannelRenderer as `fogbeam serve`, with the rigs and
-// view of a service configuration (built-in default or --config). Writes frame_NNNNN.exr (the
-// layers of `fogbeam render`) and/or frame_NNNNN.png, a contact sheet and timing.json.
+// fixed simulation rate, with the rigs and view of a service configuration (built-in default or
+// --config), through the same per-frame step as `fogbeam serve` (plugin::FramePipeline,
+// fogbeam/plugin/frame_pipeline.hpp): serve's sink publishes the frames in shared memory, replay's
+// (FileSink below) writes frame_NNNNN.exr (the layers of `fogbeam render`) and/or
+// frame_NNNNN.png, frames.csv (and effects_lamps.csv), then a contact sheet and timing.json.
 //
 // Deterministic: simulation time is k / fps, never the wall clock; tables are awaited (no
 // background builds); so the same scenario and configuration give the same frames, byte for byte.
@@ -9,7 +11,7 @@
 #include "exr_writer.hpp"
 #include "png_writer.hpp"
 
-#include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/plugin/frame_pipeline.hpp>
 #include <fogbeam/plugin/frame_renderer.hpp>
 #include <fogbeam/plugin/scenario.hpp>
 #include <fogbeam/plugin/service_config.hpp>
@@ -18,6 +20,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -91,6 +94,90 @@ void paste(const png::RgbImage& src, png::RgbImage& sheet, int x0, int y0, int w
     }
 }
 
+/// Replay's end of the frame pipeline: each frame into frame_NNNNN.exr / .png, a thumbnail for
+/// the contact sheet, a frames.csv row (and, with glow or glare on, effects_lamps.csv rows), and
+/// the figures of the summary and timing.json. One channel; at(k, t) before each step says
+/// which frame it is.
+class FileSink final : public plugin::FrameSink {
+ public:
+  FileSink(const ReplayOptions& o, bool effects) : o_(o), effects_(effects) {
+    timeline_.open(fs::path(o.out) / "frames.csv");
+    // Per visible lamp and frame (glow or glare on): what the frame's figures are made of.
+    if (effects_) {
+      lampRows_.open(fs::path(o.out) / "effects_lamps.csv");
+      lampRows_ << "frame,t_s,lamp,distance_m,optical_distance,intensity_cd,eye_illuminance_lx,glow_source_cd,"
+                   "glow_peak_cd_m2\n";
+    }
+    timeline_ << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px"
+              << (effects_ ? ",eye_illuminance_lx,veiling_luminance_cd_m2,glow_ms,glare_ms" : "") << "\n";
+  }
+
+  /// The next frame is frame `k`, at simulation time `t_s`.
+  void at(std::size_t k, double t_s) {
+    k_ = k;
+    t_ = t_s;
+  }
+
+  Status consume(std::size_t, const plugin::RenderedFrame& frame, const plugin::FrameBookkeeping&) override {
+    const auto b = Clock::now();
+    char name[64];
+    std::snprintf(name, sizeof name, "frame_%05zu", k_);
+    const fs::path base = fs::path(o_.out) / name;
+    if (o_.exr) {
+      if (Status s = exr::writeFrameLayers(frame.layers, base.string() + ".exr"); !s) return s;
+    }
+    png::RgbImage img = toImage(frame.layers, o_.exposure);
+    if (o_.png) {
+      if (Status s = png::writePng(img, base.string() + ".png"); !s) return s;
+    }
+    thumbs.push_back(std::move(img));
+    const auto c = Clock::now();
+    // The frame's time: the renderer's, from its first stage to the packed frame.
+    const plugin::FrameTimings& tm = frame.timings;
+    totalMs.push_back(tm.total_ms);
+    waitMs.push_back(tm.table_wait_ms);
+    surfaceMs.push_back(tm.surface_ms);
+    airMs.push_back(tm.airlight_ms);
+    writeMs.push_back(std::chrono::duration<double, std::milli>(c - b).count());
+    timeline_ << k_ << "," << t_ << "," << plugin::lightNames(frame.inputs.lights) << "," << frame.inputs.traffic_count
+              << "," << tm.total_ms << "," << tm.table_wait_ms << "," << tm.surface_ms << "," << tm.airlight_ms << ","
+              << frame.airlight_evaluated;
+    if (effects_) {
+      const LampEffectsReport& fx = frame.effects;
+      eyeLux.push_back(fx.eye_illuminance_lx);
+      veiling.push_back(fx.veiling_luminance_cd_m2);
+      glowMs.push_back(1e3 * fx.glow_seconds);
+      glareMs.push_back(1e3 * fx.glare_seconds);
+      timeline_ << "," << fx.eye_illuminance_lx << "," << fx.veiling_luminance_cd_m2 << "," << 1e3 * fx.glow_seconds
+                << "," << 1e3 * fx.glare_seconds;
+      for (const LampEffectsReport::Lamp& l : fx.lamps) {
+        if (!l.visible) continue;
+        // CSV: the name quoted (names may hold commas), quotes doubled.
+        std::string quotedName = "\"";
+        for (char letter : l.name) quotedName += letter == '"' ? std::string("\"\"") : std::string(1, letter);
+        quotedName += "\"";
+        lampRows_ << k_ << "," << t_ << "," << quotedName << "," << l.distance_m << "," << l.optical_distance << ","
+                  << l.intensity_cd << "," << l.eye_illuminance_lx << "," << l.glow_source_cd << ","
+                  << l.glow_peak_cd_m2 << "\n";
+      }
+    }
+    timeline_ << "\n";
+    return Ok{};
+  }
+
+  // Per frame, in order: ms (renderer's total, table wait, surface, airlight; file writing),
+  // and with glow or glare on lx, cd/m², ms.
+  std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs, glowMs, glareMs, eyeLux, veiling;
+  std::vector<png::RgbImage> thumbs;  ///< the PNG images, for the contact sheet
+
+ private:
+  const ReplayOptions& o_;
+  bool effects_;
+  std::ofstream timeline_, lampRows_;
+  std::size_t k_ = 0;
+  double t_ = 0.0;
+};
+
 int fail(const std::string& what) {
   std::fprintf(stderr, "fogbeam replay: %s\n", what.c_str());
   return 2;
@@ -125,16 +212,16 @@ int run(const ReplayOptions& o) {
   fs::create_directories(o.out, ec);
   if (ec) return fail(o.out + ": " + ec.message());
 
-  std::unique_ptr<GlSurfacePass> gl;
-  if (cfg->surface != "cpu") {
-    if (auto g = GlSurfacePass::create()) gl = std::move(g).value();
-    else if (cfg->surface == "gl") return fail(g.error().message);
-    else if (cfg->effects.render.airlight == AirlightDevice::Gpu)
-      return fail("[render] airlight = \"gpu\" needs the GL surface pass: " + g.error().message);
-    else std::fprintf(stderr, "fogbeam replay: GL unavailable (%s); CPU planes only\n", g.error().message.c_str());
-  }
-  auto renderer = plugin::ChannelRenderer::create(*cfg, channel, *world, gl.get());
-  if (!renderer) return fail(renderer.error().message);
+  auto surface = plugin::openSurfacePass(*cfg);
+  if (!surface) return fail(surface.error().message);
+  if (!surface->fallback.empty())
+    std::fprintf(stderr, "fogbeam replay: GL unavailable (%s); CPU planes only\n", surface->fallback.c_str());
+  // The pipeline renders every channel of the configuration it is given: the chosen one only.
+  // Frames await their tables, as lock-step serve's do.
+  plugin::ServiceConfig one = *cfg;
+  one.channels = {cfg->channels[channel]};
+  auto pipeline = plugin::FramePipeline::create(std::move(one), *world, std::move(surface->gl), true);
+  if (!pipeline) return fail(pipeline.error().message);
 
   const double end = o.end_s >= 0.0 ? std::min(o.end_s, scenario->duration_s) : scenario->duration_s;
   const auto count = static_cast<std::size_t>(std::floor((end - o.start_s) * o.fps + 1e-9)) + 1;
@@ -148,72 +235,22 @@ int run(const ReplayOptions& o) {
 
   ipc::StateStore store;
   std::uint32_t sequence = 1;
-  plugin::RenderedFrame frame;
-  std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs, glowMs, glareMs, eyeLux, veiling;
   // Glow and glare ([glow], [glare]): their figures per frame, as extra columns at the end.
   const bool effects = cfg->effects.glow.enabled || cfg->effects.glare.enabled;
-  std::vector<png::RgbImage> thumbs;
+  FileSink sink(o, effects);
   const bool tty = ::isatty(STDERR_FILENO) != 0;
   const auto t0 = Clock::now();
-  std::ofstream timeline(fs::path(o.out) / "frames.csv");
-  // Per visible lamp and frame (glow or glare on): what the frame's figures are made of.
-  std::ofstream lampRows;
-  if (effects) {
-    lampRows.open(fs::path(o.out) / "effects_lamps.csv");
-    lampRows << "frame,t_s,lamp,distance_m,optical_distance,intensity_cd,eye_illuminance_lx,glow_source_cd,"
-                "glow_peak_cd_m2\n";
-  }
-  timeline << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px"
-           << (effects ? ",eye_illuminance_lx,veiling_luminance_cd_m2,glow_ms,glare_ms" : "") << "\n";
   for (std::size_t k = 0; k < count; ++k) {
+    // The scenario's state at t, applied as if its messages had just arrived, then serve's step.
     const double t = o.start_s + static_cast<double>(k) / o.fps;
     const auto now = Clock::now();
     plugin::applyState(plugin::evaluate(*scenario, t), store, sequence, now);
     const auto snap = store.snapshot();
-    const auto a = Clock::now();
-    if (Status s = (*renderer)->render(*snap, now, true, frame); !s) return fail(s.error().message);
-    const auto b = Clock::now();
-    char name[64];
-    std::snprintf(name, sizeof name, "frame_%05zu", k);
-    const fs::path base = fs::path(o.out) / name;
-    if (o.exr) {
-      if (Status s = exr::writeFrameLayers(frame.layers, base.string() + ".exr"); !s) return fail(s.error().message);
-    }
-    png::RgbImage img = toImage(frame.layers, o.exposure);
-    if (o.png) {
-      if (Status s = png::writePng(img, base.string() + ".png"); !s) return fail(s.error().message);
-    }
-    thumbs.push_back(std::move(img));
-    const auto c = Clock::now();
-    const double total = std::chrono::duration<double, std::milli>(b - a).count();
-    totalMs.push_back(total);
-    waitMs.push_back(frame.table_wait_ms);
-    surfaceMs.push_back(frame.meta.surface_ms);
-    airMs.push_back(frame.meta.airlight_ms);
-    writeMs.push_back(std::chrono::duration<double, std::milli>(c - b).count());
-    timeline << k << "," << t << "," << plugin::lightNames(frame.meta.lights) << "," << frame.meta.traffic_count << ","
-             << total << "," << frame.table_wait_ms << "," << frame.meta.surface_ms << "," << frame.meta.airlight_ms
-             << "," << frame.airlight_evaluated;
-    if (effects) {
-      const LampEffectsReport& fx = frame.effects;
-      eyeLux.push_back(fx.eye_illuminance_lx);
-      veiling.push_back(fx.veiling_luminance_cd_m2);
-      glowMs.push_back(1e3 * fx.glow_seconds);
-      glareMs.push_back(1e3 * fx.glare_seconds);
-      timeline << "," << fx.eye_illuminance_lx << "," << fx.veiling_luminance_cd_m2 << "," << 1e3 * fx.glow_seconds
-               << "," << 1e3 * fx.glare_seconds;
-      for (const LampEffectsReport::Lamp& l : fx.lamps) {
-        if (!l.visible) continue;
-        // CSV: the name quoted (names may hold commas), quotes doubled.
-        std::string quotedName = "\"";
-        for (char letter : l.name) quotedName += letter == '"' ? std::string("\"\"") : std::string(1, letter);
-        quotedName += "\"";
-        lampRows << k << "," << t << "," << quotedName << "," << l.distance_m << "," << l.optical_distance << ","
-                 << l.intensity_cd << "," << l.eye_illuminance_lx << "," << l.glow_source_cd << "," << l.glow_peak_cd_m2
-                 << "\n";
-      }
-    }
-    timeline << "\n";
+    sink.at(k, t);
+    plugin::FrameBookkeeping book;
+    book.frame = k;
+    if (Status s = (*pipeline)->step(*snap, now, book, sink); !s) return fail(s.error().message);
+    const double total = sink.totalMs.back();
     // Progress: a bar redrawn in place on a terminal, a line per 10 % in logs.
     const double done = static_cast<double>(k + 1) / static_cast<double>(count);
     const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -229,14 +266,14 @@ int run(const ReplayOptions& o) {
   }
   if (tty) std::fprintf(stderr, "\n");
   // Contact sheet: every frame, `sheetColumns` per row, box-filtered to the cell size.
-  const int cols = std::max(1, std::min(o.sheetColumns, static_cast<int>(thumbs.size())));
-  const int rows = static_cast<int>((thumbs.size() + static_cast<std::size_t>(cols) - 1) / static_cast<std::size_t>(cols));
+  const int cols = std::max(1, std::min(o.sheetColumns, static_cast<int>(sink.thumbs.size())));
+  const int rows = static_cast<int>((sink.thumbs.size() + static_cast<std::size_t>(cols) - 1) / static_cast<std::size_t>(cols));
   const int cellW = std::max(8, o.sheetWidth / cols - 4);
   const int cellH = std::max(4, cellW * ch.height / ch.width);
   png::RgbImage sheet(cols * (cellW + 4) + 4, rows * (cellH + 4) + 4, {40, 40, 40});
-  for (std::size_t k = 0; k < thumbs.size(); ++k) {
+  for (std::size_t k = 0; k < sink.thumbs.size(); ++k) {
     const int col = static_cast<int>(k) % cols, row = static_cast<int>(k) / cols;
-    paste(thumbs[k], sheet, 4 + col * (cellW + 4), 4 + row * (cellH + 4), cellW, cellH);
+    paste(sink.thumbs[k], sheet, 4 + col * (cellW + 4), 4 + row * (cellH + 4), cellW, cellH);
   }
   const std::string sheetPath = (fs::path(o.out) / "contact_sheet.png").string();
   if (Status s = png::writePng(sheet, sheetPath); !s) return fail(s.error().message);
@@ -244,31 +281,31 @@ int run(const ReplayOptions& o) {
   const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
   std::printf("  frames          %zu in %.1f s (%.2f frames/s, writing included)\n", count, wall,
               static_cast<double>(count) / wall);
-  std::printf("  frame time      median %.1f ms, p95 %.1f ms, max %.1f ms\n", percentile(totalMs, 0.5),
-              percentile(totalMs, 0.95), percentile(totalMs, 1.0));
+  std::printf("  frame time      median %.1f ms, p95 %.1f ms, max %.1f ms\n", percentile(sink.totalMs, 0.5),
+              percentile(sink.totalMs, 0.95), percentile(sink.totalMs, 1.0));
   std::printf("  of which        table builds (fog/rig changes) median %.1f ms, max %.1f ms; surface median %.1f ms; "
               "airlight median %.1f ms\n",
-              percentile(waitMs, 0.5), percentile(waitMs, 1.0), percentile(surfaceMs, 0.5), percentile(airMs, 0.5));
+              percentile(sink.waitMs, 0.5), percentile(sink.waitMs, 1.0), percentile(sink.surfaceMs, 0.5), percentile(sink.airMs, 0.5));
   if (effects) {
     // Eye illuminance: Σ over the visible lamps of I e^{−K_t R} / R²; veiling luminance: the
     // CIE 146 stray light at the image centre (0 without [glare]).
     std::printf("  glow / glare    median %.2f / %.2f ms per frame; eye illuminance max %.3g lx, veiling luminance at "
                 "the centre max %.3g cd/m2 (per frame: frames.csv)\n",
-                percentile(glowMs, 0.5), percentile(glareMs, 0.5), percentile(eyeLux, 1.0), percentile(veiling, 1.0));
+                percentile(sink.glowMs, 0.5), percentile(sink.glareMs, 0.5), percentile(sink.eyeLux, 1.0), percentile(sink.veiling, 1.0));
   }
-  std::printf("  writing         median %.1f ms per frame\n", percentile(writeMs, 0.5));
+  std::printf("  writing         median %.1f ms per frame\n", percentile(sink.writeMs, 0.5));
   std::printf("  wrote           %s/frame_*.%s, frames.csv%s, %s\n", o.out.c_str(),
               o.exr && o.png ? "{exr,png}" : o.exr ? "exr" : "png", effects ? ", effects_lamps.csv" : "",
               sheetPath.c_str());
   std::ofstream json(fs::path(o.out) / "timing.json");
   json << "{\"scenario\": \"" << scenario->name << "\", \"frames\": " << count << ", \"fps\": " << o.fps
        << ", \"width\": " << ch.width << ", \"height\": " << ch.height << ", \"method\": \"" << cfg->method
-       << "\", \"wall_s\": " << wall << ", \"frame_ms_median\": " << percentile(totalMs, 0.5)
-       << ", \"frame_ms_p95\": " << percentile(totalMs, 0.95) << ", \"table_ms_max\": " << percentile(waitMs, 1.0);
+       << "\", \"wall_s\": " << wall << ", \"frame_ms_median\": " << percentile(sink.totalMs, 0.5)
+       << ", \"frame_ms_p95\": " << percentile(sink.totalMs, 0.95) << ", \"table_ms_max\": " << percentile(sink.waitMs, 1.0);
   if (effects) {
-    json << ", \"glow_ms_median\": " << percentile(glowMs, 0.5) << ", \"glare_ms_median\": " << percentile(glareMs, 0.5)
-         << ", \"eye_illuminance_lx_max\": " << percentile(eyeLux, 1.0)
-         << ", \"veiling_luminance_cd_m2_max\": " << percentile(veiling, 1.0);
+    json << ", \"glow_ms_median\": " << percentile(sink.glowMs, 0.5) << ", \"glare_ms_median\": " << percentile(sink.glareMs, 0.5)
+         << ", \"eye_illuminance_lx_max\": " << percentile(sink.eyeLux, 1.0)
+         << ", \"veiling_luminance_cd_m2_max\": " << percentile(sink.veiling, 1.0);
   }
   json << ", \"airlight\": \"" << toString(cfg->effects.render.airlight) << "\"}\n";
   return 0;

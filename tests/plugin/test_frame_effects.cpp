@@ -135,7 +135,7 @@ TEST(ChannelRendererEffects, GlareOfAnOncomingCarRisesAsItApproaches) {
     EXPECT_NEAR(at(f.layers.glare, kWidth / 2, kHeight / 2) / 3.0, fx.veiling_luminance_cd_m2,
                 0.01 * fx.veiling_luminance_cd_m2);
     EXPECT_TRUE(f.layers.glow.empty());  // glow off
-    EXPECT_GT(f.effects_ms, 0.0);
+    EXPECT_GT(f.timings.effects_ms, 0.0);
   }
 }
 
@@ -214,7 +214,7 @@ TEST(ChannelRendererEffects, OffGivesNoLayersAndZeroFigures) {
   EXPECT_TRUE(f.effects.lamps.empty());
   EXPECT_EQ(f.effects.eye_illuminance_lx, 0.0);
   EXPECT_EQ(f.effects.veiling_luminance_cd_m2, 0.0);
-  EXPECT_EQ(f.effects_ms, 0.0);
+  EXPECT_EQ(f.timings.effects_ms, 0.0);
   EXPECT_GT(sum(f.layers.airlight), 0.0);  // the frame itself is there
 }
 
@@ -443,8 +443,8 @@ TEST(GlChannelRenderer, GpuAirlightMatchesTheCpuAccuratePath) {
   const double p95 = rel.empty() ? 0.0 : rel[rel.size() * 95 / 100];
   std::printf("  GPU / CPU airlight sum %.5f, p95 per pixel %.2e over %zu px; GPU %s: surface %.1f ms, airlight %.1f ms; "
               "CPU airlight %.1f ms\n",
-              sg / sc, p95, rel.size(), (*glGpu)->description().c_str(), g.meta.surface_ms, g.meta.airlight_ms,
-              c.meta.airlight_ms);
+              sg / sc, p95, rel.size(), (*glGpu)->description().c_str(), g.timings.surface_ms, g.timings.airlight_ms,
+              c.timings.airlight_ms);
   EXPECT_NEAR(sg / sc, 1.0, 0.02);
   EXPECT_LT(p95, 0.05);
   // The same surfaces, and the glare of the same lamps, whichever path made the airlight.

@@ -1,11 +1,19 @@
 // fogbeam — one output view of the service: from a simulation state (ipc::SimSnapshot) to a
-// packed frame and its metadata. Shared by `fogbeam serve` (frames to shared memory) and
-// `fogbeam replay` (frames to files), so both render exactly the same way.
+// packed frame and what the renderer knows about it (RenderedFrame: view, inputs used, stage
+// times). Shared by `fogbeam serve` (frames to shared memory) and `fogbeam replay` (frames to
+// files) through the frame pipeline (frame_pipeline.hpp), so both render exactly the same way;
+// the service maps a frame to the wire metadata (wireMeta, service.hpp).
 //
-// Per frame: the ego pose places the driver's eye (ServiceConfig::eye_m + the channel's offset
-// and orientation) and the ego rig; light bits switch rig lamps by role; live traffic objects get
-// their class's rig; the world scene adds world lamps, planes and glTF. Surfaces (GL or CPU),
-// airlight (the configured method; ego lamps through view tables), composite, pack.
+// Per frame, in stages (ChannelRenderer::render in frame_renderer.cpp):
+//  1. tables: the fog and quantised bending the state wants; swap in, await or start a build;
+//  2. scenes: the ego pose places the driver's eye (ServiceConfig::eye_m + the channel's offset
+//     and orientation) and the ego rig; light bits switch rig lamps by role; the world scene adds
+//     world lamps, planes and glTF; live traffic objects get their class's rig;
+//  3. surfaces (GL or CPU planes);
+//  4. airlight (the configured method; ego lamps through view tables, traffic per pixel; or the
+//     GL pass's GPU airlight);
+//  5. glow and glare of the lamps that are on;
+//  6. composite and pack into the channel's format.
 //
 // Issue 7 additions, each from the service config ([render] airlight, [glow], [glare]):
 //  * airlight = "gpu": the GL surface pass computes the accurate airlight of every lit lamp in
@@ -22,7 +30,6 @@
 // Thread-safety: one thread drives a ChannelRenderer; distinct renderers are independent.
 #pragma once
 
-#include <fogbeam/ipc/shm_channel.hpp>
 #include <fogbeam/ipc/state_store.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 #include <fogbeam/render/frame.hpp>
@@ -31,6 +38,7 @@
 #include <fogbeam/util/result.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -43,19 +51,55 @@ namespace fogbeam::plugin {
 /// Bending angles are applied in steps of this many degrees (each step has its own view tables).
 inline constexpr double kBendingStepDeg = 1.0;
 
+/// Where a frame was seen from and what it covers (the view fields of the shm metadata).
+struct FrameView {
+  Vec3 eye_m{0.0};  ///< the channel's eye in the world frame, m
+  /// The ego's attitude, deg (the pose's yaw, pitch, roll; the channel's own rotation relative
+  /// to the vehicle is not in it).
+  float yaw_deg = 0.0f, pitch_deg = 0.0f, roll_deg = 0.0f;
+  /// The whole horizontal and vertical extent, deg (off-axis views: left + right, up + down).
+  float fov_x_deg = 0.0f, fov_y_deg = 0.0f;
+};
+
+/// The inputs a frame was made of: the state snapshot's values and stamps it used.
+struct FrameInputs {
+  double sim_time_s = 0.0;   ///< the ego state's sender time, s (0 before the first ego state)
+  /// ipc::light bits the ego's lamps were switched by (low beam + position until the first lamp
+  /// state arrives).
+  std::uint32_t lights = 0;
+  /// Sender sequence numbers of the ego, lamp and environment messages used; 0 = none yet.
+  std::uint32_t ego_sequence = 0, lamp_sequence = 0, environment_sequence = 0;
+  std::uint32_t traffic_count = 0;  ///< live traffic objects (updated within the timeout), with or without a rig
+};
+
+/// Wall time of each stage of one render() call, ms.
+struct FrameTimings {
+  double table_wait_ms = 0.0;  ///< waited for fog/bending tables (wait = true, or the first frame)
+  /// The surface pass. With the GPU airlight (one GL pass for both) the pass's wall time less
+  /// its airlight draw's GPU time.
+  double surface_ms = 0.0;
+  double airlight_ms = 0.0;   ///< the airlight (GPU airlight: its draw's GPU time, GL timer query)
+  double effects_ms = 0.0;    ///< glow + glare; 0 when both are off
+  double composite_ms = 0.0;  ///< composite, glow and glare added, and packing into the channel's format
+  double total_ms = 0.0;      ///< the whole frame, table wait included
+};
+
+/// One channel's frame and what the renderer knows about it. The frame loop's bookkeeping
+/// (frame number, the request it answers, input-to-publish latency) is not in it: the service
+/// adds that when it maps a frame to the wire (wireMeta in service.hpp).
 struct RenderedFrame {
-  ipc::FrameMeta meta;             ///< everything but the frame numbers and publish time
   FrameLayers layers;              ///< linear layers (composite, airlight, surface, overlay, T, distance)
   std::vector<std::byte> packed;   ///< the channel's format, ready to publish
+  FrameView view;
+  FrameInputs inputs;
+  FrameTimings timings;
   std::size_t airlight_evaluated = 0;  ///< pixels evaluated (the rest interpolated)
   std::size_t traffic_evaluated = 0;   ///< pixels of the traffic layer evaluated (0: no traffic lamps)
   bool pending = false;            ///< a fog or bending change is still being tabulated
-  double table_wait_ms = 0.0;      ///< time this frame waited for tables (wait = true)
   /// Glow and glare figures of the lamps that are on (LampEffectsReport: per lamp, eye
   /// illuminance in lx, veiling luminance at the image centre in cd/m², glow and glare
   /// seconds). Empty and 0 when [glow] and [glare] are both off.
   LampEffectsReport effects;
-  double effects_ms = 0.0;         ///< wall time of glow + glare, ms (0 when both are off)
 };
 
 /// One point lamp of a rig lamp, in the vehicle frame: a rig lamp without an aperture is one
@@ -87,7 +131,9 @@ class ChannelRenderer {
   ChannelRenderer(const ChannelRenderer&) = delete;
   ChannelRenderer& operator=(const ChannelRenderer&) = delete;
 
-  /// Renders `state` as of `now` (traffic liveness). Errors only for failures of the renderer
+  /// Renders `state` as of `now` (traffic liveness) into `out` (its buffers are reused: pass the
+  /// same frame every time). `wait`: await table builds (lock-step, replay) instead of going on
+  /// with the previous fog and bending (free-running). Errors only for failures of the renderer
   /// itself (never for input values, which the decoders have checked).
   [[nodiscard]] Status render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait, RenderedFrame& out);
 
