@@ -34,12 +34,6 @@ static_assert(kMaxSlots <= 0xFF + 1, "the slot index must fit in the low 8 bits 
 
 std::string sysError(const std::string& what) { return what + ": " + std::strerror(errno); }
 
-bool validChannel(const std::string& c) {
-  if (c.empty() || c.size() > 48) return false;
-  for (char ch : c)
-    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '.' || ch == '-')) return false;
-  return true;
-}
 
 // Plain (non-atomic) fields: written by the writer before the slot's seq is made even, or
 // once at creation before anyone can read them.
@@ -125,6 +119,13 @@ bool processAlive(std::uint32_t pid) {
 
 }  // namespace
 
+bool validChannelName(const std::string& c) noexcept {
+  if (c.empty() || c.size() > kMaxChannelName) return false;
+  for (char ch : c)
+    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '.' || ch == '-')) return false;
+  return true;
+}
+
 std::uint32_t bytesPerPixel(std::uint32_t format) noexcept {
   switch (format) {
     case FOGBEAM_FORMAT_RGBA8_SRGB:
@@ -196,7 +197,7 @@ std::uint64_t newGeneration() {
 }  // namespace
 
 Result<std::unique_ptr<ShmWriter>> ShmWriter::create(const ShmChannelOptions& o) {
-  if (!validChannel(o.channel))
+  if (!validChannelName(o.channel))
     return Error{"shm channel '" + o.channel + "': expected 1–48 characters from [A-Za-z0-9_.-]"};
   const std::uint32_t bpp = bytesPerPixel(o.format);
   if (bpp == 0) return Error{"shm channel '" + o.channel + "': unknown format " + std::to_string(o.format)};
@@ -313,7 +314,7 @@ std::uint32_t ShmWriter::publish(FrameMeta meta, std::span<const std::byte> pixe
 
 // ---------------------------------------------------------------------------------------------
 Result<std::unique_ptr<ShmReader>> ShmReader::attach(const std::string& channel) {
-  if (!validChannel(channel))
+  if (!validChannelName(channel))
     return Error{"shm channel '" + channel + "': expected 1–48 characters from [A-Za-z0-9_.-]"};
   std::unique_ptr<ShmReader> r(new ShmReader());
   r->name_ = "/fogbeam." + channel;

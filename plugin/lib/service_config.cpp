@@ -1,5 +1,6 @@
 // fogbeam — the service configuration (service_config.hpp, docs/service.md).
 #include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/ipc/shm_channel.hpp>
 #include <fogbeam/plugin/scenario.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 #include <fogbeam/scene/sections.hpp>
@@ -255,11 +256,12 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
       s.checkKeys(kChannelKeys);
       ChannelConfig ch;
       ch.name = s.string("name", "a channel name");
-      const bool nameOk = !ch.name.empty() && ch.name.size() <= 200 &&
-                          std::all_of(ch.name.begin(), ch.name.end(), [](unsigned char ch_) {
-                            return std::isalnum(ch_) || ch_ == '_' || ch_ == '-' || ch_ == '.';
-                          });
-      if (!nameOk) s.failAt(*s.find("name"), "name", "expected letters, digits, '_', '-' or '.', found " + config::inQuotes(ch.name));
+      // The shared-memory segment's rule (docs/shm.md), checked here so that a bad name fails with
+      // the file and line rather than when the service creates the channel.
+      if (!ipc::validChannelName(ch.name))
+        s.failAt(*s.find("name"), "name",
+                 "expected 1–" + std::to_string(ipc::kMaxChannelName) + " letters, digits, '_', '-' or '.', found " +
+                     config::inQuotes(ch.name));
       ch.width = static_cast<int>(s.integer("width", 1, 16384, ch.width));
       ch.height = static_cast<int>(s.integer("height", 1, 16384, ch.height));
       ch.fov_x_deg = s.number("fov_x_deg", Range{0.0, 180.0, true, true}, ch.fov_x_deg);

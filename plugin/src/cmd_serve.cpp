@@ -10,6 +10,8 @@
 // service to stop (the loop ends, threads are joined and segments unlinked).
 #include "commands.hpp"
 
+#include <fogbeam/ipc/shm_channel.hpp>
+
 #include <fogbeam/plugin/service.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 
@@ -76,10 +78,9 @@ int run(const ServeOptions& o) {
   ServiceConfig cfg = std::move(loaded).value();
   for (plugin::ChannelConfig& ch : cfg.channels) {
     ch.name = o.channelPrefix + ch.name;
-    const bool ok = ch.name.size() <= 200 && std::all_of(ch.name.begin(), ch.name.end(), [](unsigned char c) {
-                      return std::isalnum(c) || c == '_' || c == '-' || c == '.';
-                    });
-    if (!ok) return fail("--channel-prefix: channel names take letters, digits, '_', '-' and '.' (200 at most): " + ch.name);
+    if (!ipc::validChannelName(ch.name))
+      return fail("--channel-prefix: channel names take letters, digits, '_', '-' and '.' (" +
+                  std::to_string(ipc::kMaxChannelName) + " at most): " + ch.name);
   }
   if (o.printConfig) {
     std::fputs(plugin::toToml(cfg).c_str(), stdout);

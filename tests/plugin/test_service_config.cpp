@@ -224,7 +224,14 @@ TEST(ServiceConfig, ErrorsNameTheLayerLineAndKey) {
       << errorOf("[render]\nthreds = 2\n");
   EXPECT_NE(errorOf("[[channel]]\nname = \"a\"\n[[channel]]\nname = \"a\"\n").find("bad.toml:4: [[channel]] #2 name: expected a unique name"),
             std::string::npos);
-  EXPECT_NE(errorOf("[[channel]]\nname = \"../etc\"\n").find("expected letters, digits"), std::string::npos);
+  EXPECT_NE(errorOf("[[channel]]\nname = \"../etc\"\n").find("bad.toml:2: [[channel]] #1 name: expected 1–48 letters, digits"),
+            std::string::npos)
+      << errorOf("[[channel]]\nname = \"../etc\"\n");
+  // The shared-memory name rule (48 characters) is the config's: a longer name fails at its line,
+  // not when the service creates the segment.
+  const std::string longName = "[[channel]]\nname = \"" + std::string(49, 'c') + "\"\n";
+  EXPECT_NE(errorOf(longName).find("bad.toml:2: [[channel]] #1 name: expected 1–48"), std::string::npos) << errorOf(longName);
+  EXPECT_EQ(errorOf("[[channel]]\nname = \"" + std::string(48, 'c') + "\"\n").find("name:"), std::string::npos);
   EXPECT_NE(errorOf("[ego]\n[[ego.lamp]]\nposition_m = [1, 0, 0]\nprofile = \"isotropic\"\nintensity_cd = 1\n")
                 .find("[ego] [[lamp]] #1 role: missing"),
             std::string::npos)

@@ -29,6 +29,13 @@
 
 namespace fogbeam::ipc {
 
+/// Longest channel name (docs/shm.md): "/fogbeam." + 48 characters stays well inside NAME_MAX,
+/// and the name fits the header's NUL-terminated char[64].
+inline constexpr std::size_t kMaxChannelName = 48;
+
+/// A valid channel name: 1–kMaxChannelName characters from [A-Za-z0-9_.-].
+[[nodiscard]] bool validChannelName(const std::string& name) noexcept;
+
 struct ShmChannelOptions {
   std::string channel;        ///< [A-Za-z0-9_.-], 1–48 characters; segment "/fogbeam.<channel>"
   std::uint32_t width = 0, height = 0;
