@@ -8,9 +8,11 @@
 // Each airlight stage gets a time budget (--stage-budget): it runs fewer frames than asked (at
 // least one) when they do not fit. The first airlight frame of a size builds the view tables of
 // the vehicle-mounted lamps; it is reported on its own line, not among the timed frames.
+// After the sizes, at one size each: the GPU airlight stage of the GL surface pass (--gpu-size;
+// llvmpipe runs it on the CPU where there is no GPU) against the CPU's accurate method on the
+// same frame, and near-field (aperture) lamps (--aperture-size).
 #include "commands.hpp"
 
-#include <fogbeam/gl/airlight_pass.hpp>
 #include <fogbeam/gl/surface_pass.hpp>
 
 #include <fogbeam/render/airlight_image.hpp>
@@ -194,7 +196,7 @@ Scene resized(Scene scene, int width, int height) {
 
 // One image size: every figure of the table, as JSON (the table is printed from it).
 json benchSize(const Scene& original, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
-               GlSurfacePass* gl, GlAirlightPass* glAir) {
+               GlSurfacePass* gl) {
   const Scene scene = resized(original, width, height);
   const Camera& cam = scene.camera;
   const std::size_t nPixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
@@ -329,49 +331,6 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
     kernels::forceTarget("");
   }
 
-  // The same per-pixel table formula as a GLSL full-screen shader (GlAirlightPass), on the
-  // same frame and tables: draw (GPU timer), distance upload and readback, and its difference
-  // from the CPU image outside the per-ray discs at the vehicle lamps' images.
-  json glAirlight = {{"available", false}, {"note", glAir ? "" : "GL: not available"}};
-  if (glAir) {
-    StageStats draw, upload, readback, total;
-    std::vector<float> glRgb;
-    std::string failure;
-    const auto view = ev.accurate.fastPathView();
-    for (int f = 0; f < o.frames; ++f) {
-      const auto t0 = Clock::now();
-      if (Status st = glAir->render(cam, view, surface, glRgb); !st) {
-        failure = st.error().message;
-        break;
-      }
-      total.ms.push_back(msSince(t0));
-      draw.ms.push_back(glAir->stats().draw_ms);
-      upload.ms.push_back(glAir->stats().upload_ms - glAir->stats().table_upload_ms);
-      readback.ms.push_back(glAir->stats().readback_ms);
-      if (f > 0 && std::accumulate(total.ms.begin(), total.ms.end(), 0.0) > 1e3 * o.stageBudgetSeconds) break;
-    }
-    if (failure.empty()) {
-      std::vector<double> lGl, lCpu;
-      const double f = cam.focalLengthPixels();
-      const Vec2 c = cam.principalPoint();
-      for (int j = 0; j < height; ++j)
-        for (int i = 0; i < width; ++i) {
-          const double a = (c.x - (i + 0.5)) / f, b = (c.y - (j + 0.5)) / f;
-          bool guarded = false;
-          for (const auto& g : view.guards) guarded |= (a - g[0]) * (a - g[0]) + (b - g[1]) * (b - g[1]) <= g[2];
-          if (guarded) continue;
-          const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(width) + static_cast<std::size_t>(i);
-          lGl.push_back(luminance(&glRgb[3 * k]));
-          lCpu.push_back(luminance(&full.rgb[3 * k]));
-        }
-      glAirlight = {{"available", true}, {"note", glAir->description()}, {"total", total.toJson()},
-                    {"draw", draw.toJson()}, {"distance_upload", upload.toJson()}, {"readback", readback.toJson()},
-                    {"vs_cpu_full", relativeErrors(lGl, lCpu).toJson()}};
-    } else {
-      glAirlight = {{"available", false}, {"note", "GL airlight failed: " + failure}};
-    }
-  }
-
   // Composite.
   FrameLayers layers;
   StageStats compStats;
@@ -436,7 +395,6 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   stages["airlight_full"] = fullStats.toJson();
   stages["airlight_full"]["evaluated_pixels"] = fullEvaluated;
   stages["airlight_first_frame"] = {{"ms", warmMs}, {"view_table_build_ms", tableMs}};
-  stages["airlight_glsl"] = glAirlight;
   stages["airlight_kernels_by_target"] = simd;
   stages["composite"] = compStats.toJson();
   r["stages"] = stages;
@@ -588,15 +546,6 @@ void printSize(const json& r) {
   std::printf("  %-30s %9.2f ms  (of which view-table build %.2f ms; reused by later frames)\n",
               "airlight first frame", s["airlight_first_frame"]["ms"].get<double>(),
               s["airlight_first_frame"]["view_table_build_ms"].get<double>());
-  if (s["airlight_glsl"]["available"].get<bool>()) {
-    printStage("airlight GLSL, full: total", s["airlight_glsl"]["total"]);
-    printStage("  of which draw (to glFinish)", s["airlight_glsl"]["draw"]);
-    printStage("  of which distance upload", s["airlight_glsl"]["distance_upload"]);
-    printStage("  of which readback", s["airlight_glsl"]["readback"]);
-    printError("  GLSL vs CPU image, full", s["airlight_glsl"]["vs_cpu_full"]);
-  } else {
-    std::printf("  %-30s %s\n", "airlight GLSL", s["airlight_glsl"]["note"].get<std::string>().c_str());
-  }
   std::printf("  %-30s", "kernels, 1 thread (ns/px)");
   for (const json& t : s["airlight_kernels_by_target"])
     std::printf(" %s %.1f (%.1fx);", t["target"].get<std::string>().c_str(), t["ns_per_pixel"].get<double>(),
@@ -844,13 +793,8 @@ int run(BenchOptions o) {
   std::printf("  machine   %s, %u logical cores; %u threads\n", cpu.c_str(), std::thread::hardware_concurrency(), threads);
   std::printf("  compiler  GCC %s; build type %s; flags '%s'\n", __VERSION__, FOGBEAM_BUILD_TYPE, compileFlags().c_str());
   std::unique_ptr<GlSurfacePass> gl;
-  std::unique_ptr<GlAirlightPass> glAir;
   if (auto created = GlSurfacePass::create()) gl = std::move(created).value();
   else std::printf("  surface   GL unavailable (%s); CPU planes only\n", created.error().message.c_str());
-  if (gl) {
-    if (auto created = GlAirlightPass::create()) glAir = std::move(created).value();
-    else std::printf("  airlight  GLSL pass unavailable: %s\n", created.error().message.c_str());
-  }
   const std::string road = scene->gltf_path ? "glTF " + *scene->gltf_path + (gl ? "" : " (not drawn without GL)") : "planes only";
   std::printf("  scene     %zu lamps, %zu planes, K_t %.4f /m, %s; geometry: %s\n", scene->lamps.size(),
               scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str(), road.c_str());
@@ -892,7 +836,7 @@ int run(BenchOptions o) {
   root["airlight_paths"] = ev.accurate.describe();
   root["sizes"] = json::array();
   for (const auto& [w, h] : sizes) {
-    json r = benchSize(*scene, w, h, o, ev, pool, gl.get(), glAir.get());
+    json r = benchSize(*scene, w, h, o, ev, pool, gl.get());
     printSize(r);
     std::fflush(stdout);
     root["sizes"].push_back(std::move(r));

@@ -4,6 +4,7 @@
 #include <fogbeam/render/airlight_kernels.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -225,9 +226,6 @@ AirlightImageEvaluator::FastPathView AirlightImageEvaluator::fastPathView() cons
   v.isoTable = st.isoTable.get();
   v.isoLamps = &st.isoParams;
   v.viewTables = &st.viewTables;
-  for (const auto& g : st.rayGuards)
-    if (g.r2 >= 0.0) v.guards.push_back({g.a, g.b, g.r2});
-  v.complete = st.rayLamps.empty() && st.pencilLamps.empty();
   return v;
 }
 
