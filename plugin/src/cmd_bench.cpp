@@ -8,9 +8,11 @@
 // Each airlight stage gets a time budget (--stage-budget): it runs fewer frames than asked (at
 // least one) when they do not fit. The first airlight frame of a size builds the view tables of
 // the vehicle-mounted lamps; it is reported on its own line, not among the timed frames.
+// After the sizes, at one size each: the GPU airlight stage of the GL surface pass (--gpu-size;
+// llvmpipe runs it on the CPU where there is no GPU) against the CPU's accurate method on the
+// same frame, and near-field (aperture) lamps (--aperture-size).
 #include "commands.hpp"
 
-#include <fogbeam/gl/airlight_pass.hpp>
 #include <fogbeam/gl/surface_pass.hpp>
 
 #include <fogbeam/render/airlight_image.hpp>
@@ -192,281 +194,284 @@ Scene resized(Scene scene, int width, int height) {
   return scene;
 }
 
-// One image size: every figure of the table, as JSON (the table is printed from it).
-json benchSize(const Scene& original, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
-               GlSurfacePass* gl, GlAirlightPass* glAir) {
-  const Scene scene = resized(original, width, height);
-  const Camera& cam = scene.camera;
-  const std::size_t nPixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
-  json r;
-  r["width"] = width;
-  r["height"] = height;
-  r["pixels"] = nPixels;
+// ---------------------------------------------------------------------------------------------
+// One image size, stage by stage. Each stage below times one part of a frame (or measures its
+// error) and returns its figures as JSON; benchSize() runs them in order and collects them into
+// the size's table, which printSize() prints. The stages share the frame through SizeRun: the
+// surface buffers the airlight stages read, the airlight images and the composite.
 
-  // Surface pass: CPU planes (the analytic null renderer).
-  SurfaceBuffers surface;
-  StageStats surfaceStats;
-  for (int f = 0; f < o.frames; ++f) {
+struct SizeRun {
+  SizeRun(Scene s, const BenchOptions& opt, Evaluators& e, ThreadPool& p, GlSurfacePass* g)
+      : scene(std::move(s)), o(opt), ev(e), pool(p), gl(g),
+        nPixels(static_cast<std::size_t>(scene.camera.width) * static_cast<std::size_t>(scene.camera.height)) {}
+
+  const Scene scene;  // the bench scene at this size
+  const BenchOptions& o;
+  Evaluators& ev;
+  ThreadPool& pool;
+  GlSurfacePass* gl;  // null without EGL
+  std::size_t nPixels;
+  SurfaceBuffers surface;  // the surfaces the airlight stages read (the GL pass's when it works)
+  AirlightImage sub;       // the last subsampled airlight image
+  AirlightImage full;      // the last full per-pixel airlight image
+  FrameLayers layers;      // the last composite
+};
+
+// Surface pass: CPU planes (the analytic null renderer). Its buffers feed the airlight stages
+// unless the GL pass works.
+json surfaceCpuStage(SizeRun& run) {
+  StageStats stats;
+  for (int f = 0; f < run.o.frames; ++f) {
     const auto t0 = Clock::now();
-    renderSurfacesCpu(scene, surface);
-    surfaceStats.ms.push_back(msSince(t0));
+    renderSurfacesCpu(run.scene, run.surface);
+    stats.ms.push_back(msSince(t0));
   }
-  // GL surface pass (fogbeam_gl, EGL): the whole render() call (upload, draw, PBO readback)
-  // and, from its own counters, the GPU draw time and the readback time. When it works, the
-  // stages below use its buffers, as `fogbeam render` does.
-  json glSurface = {{"available", false}, {"note", "GL: not available (no EGL)"}};
-  double surfaceUsedMs = surfaceStats.median();
-  std::string surfaceUsed = "surface CPU";
-  if (gl) {
-    StageStats total, draw, readback;
-    SurfaceBuffers glBuffers;
-    std::string failure;
-    for (int f = 0; f < o.frames; ++f) {
-      const auto t0 = Clock::now();
-      if (Status st = gl->render(scene, glBuffers); !st) {
-        failure = st.error().message;
-        break;
-      }
-      total.ms.push_back(msSince(t0));
-      draw.ms.push_back(gl->stats().surface_ms);
-      readback.ms.push_back(gl->stats().readback_ms);
+  return stats.toJson();
+}
+
+// GL surface pass (fogbeam_gl, EGL): the whole render() call (upload, draw, PBO readback)
+// and, from its own counters, the GPU draw time and the readback time. When it works, the
+// stages below use its buffers, as `fogbeam render` does.
+json surfaceGlStage(SizeRun& run) {
+  if (!run.gl) return {{"available", false}, {"note", "GL: not available (no EGL)"}};
+  StageStats total, draw, readback;
+  SurfaceBuffers glBuffers;
+  for (int f = 0; f < run.o.frames; ++f) {
+    const auto t0 = Clock::now();
+    if (Status st = run.gl->render(run.scene, glBuffers); !st)
+      return {{"available", false}, {"note", "GL failed: " + st.error().message}};
+    total.ms.push_back(msSince(t0));
+    draw.ms.push_back(run.gl->stats().surface_ms);
+    readback.ms.push_back(run.gl->stats().readback_ms);
+  }
+  run.surface = std::move(glBuffers);
+  return {{"available", true}, {"note", run.gl->description()}, {"total", total.toJson()},
+          {"draw", draw.toJson()}, {"readback", readback.toJson()}};
+}
+
+// Airlight, accurate method, first frame at this size: it builds the view tables of the
+// vehicle-mounted lamps (their pose relative to the camera is fixed, so later frames reuse
+// them), so it is timed on its own and reported as the table build, not as a frame.
+json airlightFirstFrameStage(SizeRun& run) {
+  const auto t0 = Clock::now();
+  run.ev.accurate.evaluate(run.scene, run.surface, SubsamplingOptions{}, run.sub);
+  const double ms = msSince(t0);
+  return {{"ms", ms}, {"view_table_build_ms", 1e3 * run.sub.table_seconds}};
+}
+
+// Adaptive subsampling: at least one frame; further frames while they fit the stage budget.
+// With the evaluator's own split of a frame: evaluation, block tests and edges, interpolation.
+json airlightSubsampledStage(SizeRun& run) {
+  StageStats frame, eval, judge, fill;
+  double totalMs = 0.0;
+  for (int f = 0; f < run.o.frames; ++f) {
+    if (f > 0 && totalMs + frame.ms.back() > 1e3 * run.o.stageBudgetSeconds) break;
+    const auto t0 = Clock::now();
+    run.ev.accurate.evaluate(run.scene, run.surface, SubsamplingOptions{}, run.sub);
+    frame.ms.push_back(msSince(t0));
+    eval.ms.push_back(1e3 * run.sub.eval_seconds);
+    judge.ms.push_back(1e3 * run.sub.judge_seconds);
+    fill.ms.push_back(1e3 * run.sub.fill_seconds);
+    totalMs += frame.ms.back();
+  }
+  json s = frame.toJson();
+  s["evaluated_pixels"] = run.sub.evaluated;
+  s["evaluate"] = eval.toJson();
+  s["judge"] = judge.toJson();
+  s["fill"] = fill.toJson();
+  return s;
+}
+
+// Full per-pixel: whole frames, as many as fit the budget (at least one).
+json airlightFullStage(SizeRun& run) {
+  StageStats frame;
+  double totalMs = 0.0;
+  for (int f = 0; f < run.o.frames; ++f) {
+    if (f > 0 && totalMs + frame.ms.back() > 1e3 * run.o.stageBudgetSeconds) break;
+    const auto t0 = Clock::now();
+    run.ev.accurate.evaluate(run.scene, run.surface, SubsamplingOptions{.full = true}, run.full);
+    frame.ms.push_back(msSince(t0));
+    totalMs += frame.ms.back();
+  }
+  json s = frame.toJson();
+  s["evaluated_pixels"] = run.full.evaluated;
+  return s;
+}
+
+// The SIMD kernels on every compiled target against the scalar definition (double
+// arithmetic, one pixel at a time): isotropic lamps and the vehicle lamps' frustum tables on
+// the frame's first 65 536 pixels, one thread.
+json kernelsByTargetStage(SizeRun& run) {
+  const Camera& cam = run.scene.camera;
+  const auto view = run.ev.accurate.fastPathView();
+  const std::size_t n = std::min<std::size_t>(run.nPixels, 65536), padded = kernels::paddedSize(n);
+  std::vector<float> bx(padded, 0.5f), by(padded, 0.5f), bd(padded, 1.0f), kr(padded), kg(padded), kb(padded);
+  for (std::size_t k = 0; k < n; ++k) {
+    bx[k] = static_cast<float>(k % static_cast<std::size_t>(cam.width)) + 0.5f;
+    by[k] = static_cast<float>(k / static_cast<std::size_t>(cam.width)) + 0.5f;
+    bd[k] = run.surface.distance[k];
+  }
+  const kernels::PixelBatch px{bx.data(), by.data(), bd.data(), n};
+  const kernels::PixelGeometry geo{static_cast<float>(cam.principalPoint().x), static_cast<float>(cam.principalPoint().y),
+                                   static_cast<float>(1.0 / cam.focalLengthPixels())};
+  auto runOnce = [&](bool scalar) {
+    std::fill(kr.begin(), kr.end(), 0.0f);
+    std::fill(kg.begin(), kg.end(), 0.0f);
+    std::fill(kb.begin(), kb.end(), 0.0f);
+    const auto t0 = Clock::now();
+    if (view.isoTable && !view.isoLamps->empty()) {
+      if (scalar)
+        kernels::accumulateIsoLampsScalar(*view.isoTable, view.isoLamps->data(), view.isoLamps->size(), geo, px,
+                                          kr.data(), kg.data(), kb.data());
+      else
+        kernels::accumulateIsoLamps(*view.isoTable, view.isoLamps->data(), view.isoLamps->size(), geo, px, kr.data(),
+                                    kg.data(), kb.data());
     }
-    if (failure.empty()) {
-      glSurface = {{"available", true}, {"note", gl->description()}, {"total", total.toJson()},
-                   {"draw", draw.toJson()}, {"readback", readback.toJson()}};
-      surface = std::move(glBuffers);
-      surfaceUsedMs = total.median();
-      surfaceUsed = "surface GL";
-    } else {
-      glSurface = {{"available", false}, {"note", "GL failed: " + failure}};
+    for (const auto& t : *view.viewTables) {
+      if (t.data.empty() || t.outerR2 < 1e30f) continue;  // frustum tables; insets cover a few pixels
+      if (scalar)
+        kernels::accumulateViewTableScalar(t, geo, px, kr.data(), kg.data(), kb.data());
+      else
+        kernels::accumulateViewTable(t, geo, px, kr.data(), kg.data(), kb.data());
     }
-  }
-
-  // Airlight, accurate method. The first frame at this size builds the view tables of the
-  // vehicle-mounted lamps (their pose relative to the camera is fixed, so later frames reuse
-  // them): it is timed on its own and reported as the table build, not as a frame.
-  AirlightImage sub;
-  const auto tWarm = Clock::now();
-  ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
-  const double warmMs = msSince(tWarm);
-  const double tableMs = 1e3 * sub.table_seconds;
-  // Adaptive subsampling: at least one frame; further frames while they fit the stage budget.
-  StageStats subStats, subEval, subJudge, subFill;
-  double subTotalMs = 0.0;
-  for (int f = 0; f < o.frames; ++f) {
-    if (f > 0 && subTotalMs + subStats.ms.back() > 1e3 * o.stageBudgetSeconds) break;
-    const auto t0 = Clock::now();
-    ev.accurate.evaluate(scene, surface, SubsamplingOptions{}, sub);
-    subStats.ms.push_back(msSince(t0));
-    subEval.ms.push_back(1e3 * sub.eval_seconds);
-    subJudge.ms.push_back(1e3 * sub.judge_seconds);
-    subFill.ms.push_back(1e3 * sub.fill_seconds);
-    subTotalMs += subStats.ms.back();
-  }
-  // Full per-pixel: whole frames, as many as fit the budget (at least one).
-  StageStats fullStats;
-  AirlightImage full;
-  double fullTotalMs = 0.0;
-  for (int f = 0; f < o.frames; ++f) {
-    if (f > 0 && fullTotalMs + fullStats.ms.back() > 1e3 * o.stageBudgetSeconds) break;
-    const auto t0 = Clock::now();
-    ev.accurate.evaluate(scene, surface, SubsamplingOptions{.full = true}, full);
-    fullStats.ms.push_back(msSince(t0));
-    fullTotalMs += fullStats.ms.back();
-  }
-  const std::size_t fullEvaluated = full.evaluated;
-
-  // The SIMD kernels on every compiled target against the scalar definition (double
-  // arithmetic, one pixel at a time): isotropic lamps and the vehicle lamps' frustum tables on
-  // the frame's first 65 536 pixels, one thread.
+    return msSince(t0);
+  };
   json simd = json::array();
-  {
-    const auto view = ev.accurate.fastPathView();
-    const std::size_t n = std::min<std::size_t>(nPixels, 65536), padded = kernels::paddedSize(n);
-    std::vector<float> bx(padded, 0.5f), by(padded, 0.5f), bd(padded, 1.0f), kr(padded), kg(padded), kb(padded);
-    for (std::size_t k = 0; k < n; ++k) {
-      bx[k] = static_cast<float>(k % static_cast<std::size_t>(width)) + 0.5f;
-      by[k] = static_cast<float>(k / static_cast<std::size_t>(width)) + 0.5f;
-      bd[k] = surface.distance[k];
-    }
-    const kernels::PixelBatch px{bx.data(), by.data(), bd.data(), n};
-    const kernels::PixelGeometry geo{static_cast<float>(cam.principalPoint().x),
-                                     static_cast<float>(cam.principalPoint().y),
-                                     static_cast<float>(1.0 / cam.focalLengthPixels())};
-    auto runOnce = [&](bool scalar) {
-      std::fill(kr.begin(), kr.end(), 0.0f);
-      std::fill(kg.begin(), kg.end(), 0.0f);
-      std::fill(kb.begin(), kb.end(), 0.0f);
-      const auto t0 = Clock::now();
-      if (view.isoTable && !view.isoLamps->empty()) {
-        if (scalar)
-          kernels::accumulateIsoLampsScalar(*view.isoTable, view.isoLamps->data(), view.isoLamps->size(), geo, px,
-                                            kr.data(), kg.data(), kb.data());
-        else
-          kernels::accumulateIsoLamps(*view.isoTable, view.isoLamps->data(), view.isoLamps->size(), geo, px, kr.data(),
-                                      kg.data(), kb.data());
-      }
-      for (const auto& t : *view.viewTables) {
-        if (t.data.empty() || t.outerR2 < 1e30f) continue;  // frustum tables; insets cover a few pixels
-        if (scalar)
-          kernels::accumulateViewTableScalar(t, geo, px, kr.data(), kg.data(), kb.data());
-        else
-          kernels::accumulateViewTable(t, geo, px, kr.data(), kg.data(), kb.data());
-      }
-      return msSince(t0);
-    };
-    StageStats scalarStats;
-    for (int f = 0; f < 3; ++f) scalarStats.ms.push_back(runOnce(true));
-    const double scalarNs = 1e6 * scalarStats.median() / static_cast<double>(n);
-    simd.push_back({{"target", "scalar (double, reference)"}, {"ns_per_pixel", scalarNs}, {"speedup", 1.0}});
-    for (const std::string& t : kernels::availableTargets()) {
-      kernels::forceTarget(t);
-      StageStats st;
-      for (int f = 0; f < 5; ++f) st.ms.push_back(runOnce(false));
-      const double ns = 1e6 * st.median() / static_cast<double>(n);
-      simd.push_back({{"target", t}, {"ns_per_pixel", ns}, {"speedup", scalarNs / ns}});
-    }
-    kernels::forceTarget("");
+  StageStats scalarStats;
+  for (int f = 0; f < 3; ++f) scalarStats.ms.push_back(runOnce(true));
+  const double scalarNs = 1e6 * scalarStats.median() / static_cast<double>(n);
+  simd.push_back({{"target", "scalar (double, reference)"}, {"ns_per_pixel", scalarNs}, {"speedup", 1.0}});
+  for (const std::string& t : kernels::availableTargets()) {
+    kernels::forceTarget(t);
+    StageStats st;
+    for (int f = 0; f < 5; ++f) st.ms.push_back(runOnce(false));
+    const double ns = 1e6 * st.median() / static_cast<double>(n);
+    simd.push_back({{"target", t}, {"ns_per_pixel", ns}, {"speedup", scalarNs / ns}});
   }
+  kernels::forceTarget("");
+  return simd;
+}
 
-  // The same per-pixel table formula as a GLSL full-screen shader (GlAirlightPass), on the
-  // same frame and tables: draw (GPU timer), distance upload and readback, and its difference
-  // from the CPU image outside the per-ray discs at the vehicle lamps' images.
-  json glAirlight = {{"available", false}, {"note", glAir ? "" : "GL: not available"}};
-  if (glAir) {
-    StageStats draw, upload, readback, total;
-    std::vector<float> glRgb;
-    std::string failure;
-    const auto view = ev.accurate.fastPathView();
-    for (int f = 0; f < o.frames; ++f) {
-      const auto t0 = Clock::now();
-      if (Status st = glAir->render(cam, view, surface, glRgb); !st) {
-        failure = st.error().message;
-        break;
-      }
-      total.ms.push_back(msSince(t0));
-      draw.ms.push_back(glAir->stats().draw_ms);
-      upload.ms.push_back(glAir->stats().upload_ms - glAir->stats().table_upload_ms);
-      readback.ms.push_back(glAir->stats().readback_ms);
-      if (f > 0 && std::accumulate(total.ms.begin(), total.ms.end(), 0.0) > 1e3 * o.stageBudgetSeconds) break;
-    }
-    if (failure.empty()) {
-      std::vector<double> lGl, lCpu;
-      const double f = cam.focalLengthPixels();
-      const Vec2 c = cam.principalPoint();
-      for (int j = 0; j < height; ++j)
-        for (int i = 0; i < width; ++i) {
-          const double a = (c.x - (i + 0.5)) / f, b = (c.y - (j + 0.5)) / f;
-          bool guarded = false;
-          for (const auto& g : view.guards) guarded |= (a - g[0]) * (a - g[0]) + (b - g[1]) * (b - g[1]) <= g[2];
-          if (guarded) continue;
-          const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(width) + static_cast<std::size_t>(i);
-          lGl.push_back(luminance(&glRgb[3 * k]));
-          lCpu.push_back(luminance(&full.rgb[3 * k]));
-        }
-      glAirlight = {{"available", true}, {"note", glAir->description()}, {"total", total.toJson()},
-                    {"draw", draw.toJson()}, {"distance_upload", upload.toJson()}, {"readback", readback.toJson()},
-                    {"vs_cpu_full", relativeErrors(lGl, lCpu).toJson()}};
-    } else {
-      glAirlight = {{"available", false}, {"note", "GL airlight failed: " + failure}};
-    }
-  }
-
-  // Composite.
-  FrameLayers layers;
-  StageStats compStats;
-  for (int f = 0; f < o.frames; ++f) {
+// Composite of the surfaces and the subsampled airlight.
+json compositeStage(SizeRun& run) {
+  StageStats stats;
+  for (int f = 0; f < run.o.frames; ++f) {
     const auto t0 = Clock::now();
-    compositeFrame(scene.fog, surface, sub, layers);
-    compStats.ms.push_back(msSince(t0));
+    compositeFrame(run.scene.fog, run.surface, run.sub, run.layers);
+    stats.ms.push_back(msSince(t0));
   }
-  const double pipelineMs = surfaceUsedMs + subStats.median() + compStats.median();
+  return stats.toJson();
+}
 
-  // Glow and glare (issue 7) on the same frame: their layers' time, and their effect as the
-  // share of the composite's light they add (Σ over pixels, luminance) and the glare figures.
-  json effects;
-  {
-    GlowOptions glowOpt;
-    glowOpt.enabled = true;
-    GlareOptions glareOpt;
-    glareOpt.enabled = true;
-    auto fxPool = std::shared_ptr<ThreadPool>(&pool, [](ThreadPool*) {});  // borrowed: outlives fx
-    auto fx = LampEffects::build(scene, glowOpt, glareOpt, fxPool);
-    if (fx) {
-      StageStats glowStats, glareStats;
-      std::vector<float> glowLayer, glareLayer;
-      LampEffectsReport rep;
-      for (int f = 0; f < o.frames; ++f) {
-        fx->evaluate(scene, surface, glowLayer, glareLayer, rep);
-        glowStats.ms.push_back(1e3 * rep.glow_seconds);
-        glareStats.ms.push_back(1e3 * rep.glare_seconds);
-      }
-      double sumBase = 0.0, sumGlow = 0.0, sumGlare = 0.0;
-      for (std::size_t k = 0; k < nPixels; ++k) {
-        sumBase += luminance(&layers.composite[3 * k]);
-        sumGlow += luminance(&glowLayer[3 * k]);
-        sumGlare += luminance(&glareLayer[3 * k]);
-      }
-      int visible = 0, glowing = 0;
-      for (const auto& l : rep.lamps) {
-        visible += l.visible ? 1 : 0;
-        glowing += l.apsf_terms > 0 ? 1 : 0;
-      }
-      effects = {{"glow", glowStats.toJson()},
-                 {"glare", glareStats.toJson()},
-                 {"lamps_in_view", visible},
-                 {"lamps_with_glow", glowing},
-                 {"glow_light_share", sumBase > 0.0 ? sumGlow / sumBase : 0.0},
-                 {"glare_light_share", sumBase > 0.0 ? sumGlare / sumBase : 0.0},
-                 {"eye_illuminance_lx", rep.eye_illuminance_lx},
-                 {"veiling_luminance_centre_cd_m2", rep.veiling_luminance_cd_m2}};
-    } else {
-      effects = {{"error", fx.error().message}};
-    }
+// Glow and glare (issue 7) on the same frame: their layers' time, and their effect as the
+// share of the composite's light they add (Σ over pixels, luminance) and the glare figures.
+json glowGlareStage(SizeRun& run) {
+  GlowOptions glowOpt;
+  glowOpt.enabled = true;
+  GlareOptions glareOpt;
+  glareOpt.enabled = true;
+  auto fxPool = std::shared_ptr<ThreadPool>(&run.pool, [](ThreadPool*) {});  // borrowed: outlives fx
+  auto fx = LampEffects::build(run.scene, glowOpt, glareOpt, fxPool);
+  if (!fx) return {{"error", fx.error().message}};
+  StageStats glowStats, glareStats;
+  std::vector<float> glowLayer, glareLayer;
+  LampEffectsReport rep;
+  for (int f = 0; f < run.o.frames; ++f) {
+    fx->evaluate(run.scene, run.surface, glowLayer, glareLayer, rep);
+    glowStats.ms.push_back(1e3 * rep.glow_seconds);
+    glareStats.ms.push_back(1e3 * rep.glare_seconds);
   }
+  double sumBase = 0.0, sumGlow = 0.0, sumGlare = 0.0;
+  for (std::size_t k = 0; k < run.nPixels; ++k) {
+    sumBase += luminance(&run.layers.composite[3 * k]);
+    sumGlow += luminance(&glowLayer[3 * k]);
+    sumGlare += luminance(&glareLayer[3 * k]);
+  }
+  int visible = 0, glowing = 0;
+  for (const auto& l : rep.lamps) {
+    visible += l.visible ? 1 : 0;
+    glowing += l.apsf_terms > 0 ? 1 : 0;
+  }
+  return {{"glow", glowStats.toJson()},
+          {"glare", glareStats.toJson()},
+          {"lamps_in_view", visible},
+          {"lamps_with_glow", glowing},
+          {"glow_light_share", sumBase > 0.0 ? sumGlow / sumBase : 0.0},
+          {"glare_light_share", sumBase > 0.0 ? sumGlare / sumBase : 0.0},
+          {"eye_illuminance_lx", rep.eye_illuminance_lx},
+          {"veiling_luminance_centre_cd_m2", rep.veiling_luminance_cd_m2}};
+}
 
-  json stages;
-  stages["surface_cpu_planes"] = surfaceStats.toJson();
-  stages["surface_gl"] = glSurface;
-  stages["airlight_subsampled"] = subStats.toJson();
-  stages["airlight_subsampled"]["evaluated_pixels"] = sub.evaluated;
-  stages["airlight_subsampled"]["evaluate"] = subEval.toJson();
-  stages["airlight_subsampled"]["judge"] = subJudge.toJson();
-  stages["airlight_subsampled"]["fill"] = subFill.toJson();
-  stages["airlight_full"] = fullStats.toJson();
-  stages["airlight_full"]["evaluated_pixels"] = fullEvaluated;
-  stages["airlight_first_frame"] = {{"ms", warmMs}, {"view_table_build_ms", tableMs}};
-  stages["airlight_glsl"] = glAirlight;
-  stages["airlight_kernels_by_target"] = simd;
-  stages["composite"] = compStats.toJson();
-  r["stages"] = stages;
-  r["glow_glare"] = effects;
-  r["pipeline_subsampled_ms"] = pipelineMs;
-  r["pipeline_surface"] = surfaceUsed;
-  r["fps_subsampled"] = pipelineMs > 0.0 ? 1e3 / pipelineMs : 0.0;
-
-  // Accuracy on this frame: a fixed random sample of pixels.
-  std::mt19937 rng(o.seed);
-  std::uniform_int_distribution<int> di(0, width - 1), dj(0, height - 1);
-  std::vector<SamplePixel> px(static_cast<std::size_t>(o.samplePixels));
+// A fixed random sample of pixels (seed o.seed) for the error figures.
+std::vector<SamplePixel> samplePixels(const SizeRun& run) {
+  std::mt19937 rng(run.o.seed);
+  std::uniform_int_distribution<int> di(0, run.scene.camera.width - 1), dj(0, run.scene.camera.height - 1);
+  std::vector<SamplePixel> px(static_cast<std::size_t>(run.o.samplePixels));
   for (SamplePixel& p : px) {
     p.i = di(rng);
     p.j = dj(rng);
   }
+  return px;
+}
+
+// The ray marcher: the smallest power-of-two step count whose p95 against the reference
+// (`lRef` on the sample `px`) matches the accurate method's (`accurateP95`), and its cost
+// extrapolated to the frame against the accurate full frame (`accurateFullMs`).
+json rayMarcherStage(SizeRun& run, const std::vector<SamplePixel>& px, const std::vector<double>& lRef,
+                     double accurateP95, double accurateFullMs) {
+  const double perPixel = 1.0 / static_cast<double>(px.size());
+  json tried = json::array();
+  json rm;
+  bool matched = false;
+  for (int steps = 16; steps <= run.o.maxRayMarchSteps; steps *= 2) {
+    auto marcher = RayMarchEvaluator::build(run.scene, steps);
+    if (!marcher) {
+      rm["error"] = marcher.error().message;
+      break;
+    }
+    std::vector<double> lRm;
+    const double rmMs = evaluateSample(run.pool, run.scene.camera, run.surface, px,
+                                       [&m = *marcher](const Ray& ray, float rgb[3]) { m.evaluateRay(ray, rgb); }, lRm);
+    const ErrorStats e = relativeErrors(lRm, lRef);
+    const double usPerPixel = 1e3 * rmMs * perPixel;
+    tried.push_back({{"steps", steps}, {"median", e.median}, {"p95", e.p95}, {"us_per_pixel", usPerPixel}});
+    rm = {{"steps", steps}, {"median", e.median}, {"p95", e.p95}, {"us_per_pixel", usPerPixel},
+          {"full_frame_ms_extrapolated", 1e-3 * usPerPixel * static_cast<double>(run.nPixels)}};
+    if (e.p95 <= accurateP95) {
+      matched = true;
+      break;
+    }
+  }
+  rm["matched_accurate_p95"] = matched;
+  rm["accurate_full_frame_ms"] = accurateFullMs;
+  if (rm.contains("full_frame_ms_extrapolated") && accurateFullMs > 0.0)
+    rm["speed_ratio"] = rm["full_frame_ms_extrapolated"].get<double>() / accurateFullMs;
+  rm["tried"] = tried;
+  return rm;
+}
+
+// Accuracy on this frame: every method against the reference on the sample of pixels (the
+// images' pixels for the full and subsampled images), the subsampled image against the full
+// one over every pixel, the cost per pixel of each method and of each lamp alone, and the ray
+// marcher at equal error. `accurateFullMs`: the full image's median frame time.
+json accuracyStage(SizeRun& run, double accurateFullMs) {
+  const Camera& cam = run.scene.camera;
+  const std::vector<SamplePixel> px = samplePixels(run);
   auto rayFn = [](const AirlightImageEvaluator& e) {
     return [&e](const Ray& ray, float rgb[3]) { e.evaluateRay(ray, rgb); };
   };
   std::vector<double> lRef, lSeed, lRay, lAcc(px.size()), lSub(px.size());
-  const double refMs = evaluateSample(pool, cam, surface, px, rayFn(ev.reference), lRef);
-  const double seedMs = evaluateSample(pool, cam, surface, px, rayFn(ev.seed), lSeed);
-  const double accMs = evaluateSample(pool, cam, surface, px, rayFn(ev.accurate), lRay);
-  std::vector<double> lFullAll(nPixels), lSubAll(nPixels);
-  for (std::size_t k = 0; k < nPixels; ++k) {
-    lFullAll[k] = luminance(&full.rgb[3 * k]);
-    lSubAll[k] = luminance(&sub.rgb[3 * k]);
+  const double refMs = evaluateSample(run.pool, cam, run.surface, px, rayFn(run.ev.reference), lRef);
+  const double seedMs = evaluateSample(run.pool, cam, run.surface, px, rayFn(run.ev.seed), lSeed);
+  const double accMs = evaluateSample(run.pool, cam, run.surface, px, rayFn(run.ev.accurate), lRay);
+  std::vector<double> lFullAll(run.nPixels), lSubAll(run.nPixels);
+  for (std::size_t k = 0; k < run.nPixels; ++k) {
+    lFullAll[k] = luminance(&run.full.rgb[3 * k]);
+    lSubAll[k] = luminance(&run.sub.rgb[3 * k]);
   }
   for (std::size_t k = 0; k < px.size(); ++k) {
-    const std::size_t idx = static_cast<std::size_t>(px[k].j) * static_cast<std::size_t>(width) + static_cast<std::size_t>(px[k].i);
+    const std::size_t idx = static_cast<std::size_t>(px[k].j) * static_cast<std::size_t>(cam.width) +
+                            static_cast<std::size_t>(px[k].i);
     lAcc[k] = lFullAll[idx];
     lSub[k] = lSubAll[idx];
   }
@@ -477,7 +482,7 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   const double perPixel = 1.0 / static_cast<double>(px.size());
   json acc;
   acc["sample_pixels"] = px.size();
-  acc["seed"] = o.seed;
+  acc["seed"] = run.o.seed;
   acc["reference_threshold_cd_m2"] = kRefThresholdCdM2;
   acc["luminance"] = "mean of R, G, B (white lamps: cd/m2)";
   acc["seed_method"] = eSeed.toJson();
@@ -488,14 +493,14 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   acc["cost_us_per_pixel"] = {{"reference", 1e3 * refMs * perPixel},
                               {"seed", 1e3 * seedMs * perPixel},
                               {"accurate_per_ray", 1e3 * accMs * perPixel},
-                              {"accurate_image_full", fullStats.median() * 1e3 / static_cast<double>(nPixels)}};
+                              {"accurate_image_full", accurateFullMs * 1e3 / static_cast<double>(run.nPixels)}};
   // Where the per-ray accurate method's time goes: each lamp alone on the same sample.
   json byLamp = json::array();
-  for (const SceneLamp& sl : scene.lamps) {
-    auto one = AirlightEvaluator::build(sl.lamp, scene.fog, AirlightMethod::Accurate);
+  for (const SceneLamp& sl : run.scene.lamps) {
+    auto one = AirlightEvaluator::build(sl.lamp, run.scene.fog, AirlightMethod::Accurate);
     if (!one) continue;
     std::vector<double> l;
-    const double ms = evaluateSample(pool, cam, surface, px,
+    const double ms = evaluateSample(run.pool, cam, run.surface, px,
                                      [&e = *one](const Ray& ray, float rgb[3]) {
                                        rgb[0] = rgb[1] = rgb[2] = static_cast<float>(e.evaluate(ray));
                                      },
@@ -503,38 +508,42 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
     byLamp.push_back({{"lamp", sl.name}, {"us_per_pixel", 1e3 * ms * perPixel}});
   }
   acc["accurate_cost_us_per_pixel_by_lamp"] = byLamp;
+  acc["raymarch"] = rayMarcherStage(run, px, lRef, eAcc.p95, accurateFullMs);
+  return acc;
+}
 
-  // The ray marcher: the smallest power-of-two step count whose p95 matches the accurate one.
-  json tried = json::array();
-  json rm;
-  bool matched = false;
-  for (int steps = 16; steps <= o.maxRayMarchSteps; steps *= 2) {
-    auto marcher = RayMarchEvaluator::build(scene, steps);
-    if (!marcher) {
-      rm["error"] = marcher.error().message;
-      break;
-    }
-    std::vector<double> lRm;
-    const double rmMs = evaluateSample(pool, cam, surface, px,
-                                       [&m = *marcher](const Ray& ray, float rgb[3]) { m.evaluateRay(ray, rgb); }, lRm);
-    const ErrorStats e = relativeErrors(lRm, lRef);
-    const double usPerPixel = 1e3 * rmMs * perPixel;
-    tried.push_back({{"steps", steps}, {"median", e.median}, {"p95", e.p95}, {"us_per_pixel", usPerPixel}});
-    rm = {{"steps", steps}, {"median", e.median}, {"p95", e.p95}, {"us_per_pixel", usPerPixel},
-          {"full_frame_ms_extrapolated", 1e-3 * usPerPixel * static_cast<double>(nPixels)}};
-    if (e.p95 <= eAcc.p95) {
-      matched = true;
-      break;
-    }
-  }
-  const double accurateFullMs = fullStats.median();
-  rm["matched_accurate_p95"] = matched;
-  rm["accurate_full_frame_ms"] = accurateFullMs;
-  if (rm.contains("full_frame_ms_extrapolated") && accurateFullMs > 0.0)
-    rm["speed_ratio"] = rm["full_frame_ms_extrapolated"].get<double>() / accurateFullMs;
-  rm["tried"] = tried;
-  acc["raymarch"] = rm;
-  r["accuracy"] = acc;
+// One image size: every stage in the order a frame runs them, each stage's figures under its
+// key (the table printSize() prints), then the pipeline of the subsampled frame and the errors.
+json benchSize(const Scene& original, int width, int height, const BenchOptions& o, Evaluators& ev, ThreadPool& pool,
+               GlSurfacePass* gl) {
+  SizeRun run(resized(original, width, height), o, ev, pool, gl);
+  json r;
+  r["width"] = width;
+  r["height"] = height;
+  r["pixels"] = run.nPixels;
+
+  json& stages = r["stages"];
+  stages["surface_cpu_planes"] = surfaceCpuStage(run);
+  stages["surface_gl"] = surfaceGlStage(run);
+  stages["airlight_first_frame"] = airlightFirstFrameStage(run);
+  stages["airlight_subsampled"] = airlightSubsampledStage(run);
+  stages["airlight_full"] = airlightFullStage(run);
+  stages["airlight_kernels_by_target"] = kernelsByTargetStage(run);
+  stages["composite"] = compositeStage(run);
+  r["glow_glare"] = glowGlareStage(run);
+
+  // The frame as `fogbeam render` runs it: the surfaces the airlight stages read (GL when it
+  // works), the subsampled airlight, the composite.
+  const bool glUsed = stages["surface_gl"]["available"].get<bool>();
+  const double surfaceMs = glUsed ? stages["surface_gl"]["total"]["median_ms"].get<double>()
+                                  : stages["surface_cpu_planes"]["median_ms"].get<double>();
+  const double pipelineMs = surfaceMs + stages["airlight_subsampled"]["median_ms"].get<double>() +
+                            stages["composite"]["median_ms"].get<double>();
+  r["pipeline_subsampled_ms"] = pipelineMs;
+  r["pipeline_surface"] = glUsed ? "surface GL" : "surface CPU";
+  r["fps_subsampled"] = pipelineMs > 0.0 ? 1e3 / pipelineMs : 0.0;
+
+  r["accuracy"] = accuracyStage(run, stages["airlight_full"]["median_ms"].get<double>());
   return r;
 }
 
@@ -588,15 +597,6 @@ void printSize(const json& r) {
   std::printf("  %-30s %9.2f ms  (of which view-table build %.2f ms; reused by later frames)\n",
               "airlight first frame", s["airlight_first_frame"]["ms"].get<double>(),
               s["airlight_first_frame"]["view_table_build_ms"].get<double>());
-  if (s["airlight_glsl"]["available"].get<bool>()) {
-    printStage("airlight GLSL, full: total", s["airlight_glsl"]["total"]);
-    printStage("  of which draw (to glFinish)", s["airlight_glsl"]["draw"]);
-    printStage("  of which distance upload", s["airlight_glsl"]["distance_upload"]);
-    printStage("  of which readback", s["airlight_glsl"]["readback"]);
-    printError("  GLSL vs CPU image, full", s["airlight_glsl"]["vs_cpu_full"]);
-  } else {
-    std::printf("  %-30s %s\n", "airlight GLSL", s["airlight_glsl"]["note"].get<std::string>().c_str());
-  }
   std::printf("  %-30s", "kernels, 1 thread (ns/px)");
   for (const json& t : s["airlight_kernels_by_target"])
     std::printf(" %s %.1f (%.1fx);", t["target"].get<std::string>().c_str(), t["ns_per_pixel"].get<double>(),
@@ -678,103 +678,113 @@ Result<CpuFrames> cpuFrames(const Scene& scene, const SurfaceBuffers& surface, u
   return c;
 }
 
-/// Issue 7's GPU airlight path against the CPU's accurate method on the same frame, and the
-/// cost and effect of near-field lamps (the scene's vehicle lamps given a 0.20 × 0.10 m face).
-json benchAdditions(const Scene& base, const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
-  json out;
-  int w = 0, h = 0;
-  // GPU airlight.
+// Issue 7's GPU airlight stage (GlSurfacePass::setAirlight) at `o.gpuSize`: the surface pass
+// alone, then with the stage (its first frame compiles the shader and uploads the G-moment
+// table, timed on its own), the stage's GPU time, and its image against the CPU's accurate
+// method (full and subsampled frames timed beside it) on the same surfaces.
+json gpuAirlightStage(const Scene& base, const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
   json gpu = {{"available", false}};
+  int w = 0, h = 0;
   if (!gl) {
     gpu["note"] = "GL: not available (no EGL)";
-  } else if (parseSize(o.gpuSize, w, h)) {
-    const Scene scene = resized(base, w, h);
-    SurfaceBuffers surface, surfaceGpu;
-    std::vector<float> air;
-    StageStats surfaceOnly, total, airGpu;
-    std::string failure;
-    for (int f = 0; f < o.frames && failure.empty(); ++f) {
-      const auto t0 = Clock::now();
-      if (Status st = gl->render(scene, surface); !st) failure = st.error().message;
-      surfaceOnly.ms.push_back(msSince(t0));
-    }
-    GpuAirlightOptions opt;
-    if (Status st = gl->setAirlight(opt); !st && failure.empty()) failure = st.error().message;
-    // One frame first: shader compilation and the G-moment tables' upload.
-    const auto tWarm = Clock::now();
-    if (failure.empty())
-      if (Status st = gl->render(scene, surfaceGpu, air); !st) failure = st.error().message;
-    const double warmMs = msSince(tWarm);
-    for (int f = 0; f < o.frames && failure.empty(); ++f) {
-      const auto t0 = Clock::now();
-      if (Status st = gl->render(scene, surfaceGpu, air); !st) failure = st.error().message;
-      total.ms.push_back(msSince(t0));
-      airGpu.ms.push_back(gl->stats().airlight_ms);
-    }
-    (void)gl->setAirlight(std::nullopt);
-    auto cpu = cpuFrames(scene, surface, threads, o);
-    if (!failure.empty()) {
-      gpu["note"] = "GPU airlight failed: " + failure;
-    } else if (!cpu) {
-      gpu["note"] = "CPU accurate failed: " + cpu.error().message;
-    } else {
-      const std::vector<double> lg = luminances(air), lc = luminances(cpu->fullImage.rgb);
-      const double sc = sumOf(lc);
-      gpu = {{"available", true},
-             {"note", gl->description()},
-             {"width", w},
-             {"height", h},
-             {"pieces", opt.pieces},
-             {"first_frame_ms", warmMs},
-             {"surface_only", surfaceOnly.toJson()},
-             {"surface_and_airlight", total.toJson()},
-             {"airlight_gpu_time", airGpu.toJson()},
-             {"cpu_accurate_full", cpu->full.toJson()},
-             {"cpu_accurate_subsampled", cpu->sub.toJson()},
-             {"vs_cpu_full", relativeErrors(lg, lc).toJson()},
-             {"sum_ratio", sc > 0.0 ? sumOf(lg) / sc : 0.0}};
-    }
+    return gpu;
   }
-  out["gpu_airlight"] = gpu;
+  if (!parseSize(o.gpuSize, w, h)) return gpu;
+  const Scene scene = resized(base, w, h);
+  SurfaceBuffers surface, surfaceGpu;
+  std::vector<float> air;
+  StageStats surfaceOnly, total, airGpu;
+  std::string failure;
+  for (int f = 0; f < o.frames && failure.empty(); ++f) {
+    const auto t0 = Clock::now();
+    if (Status st = gl->render(scene, surface); !st) failure = st.error().message;
+    surfaceOnly.ms.push_back(msSince(t0));
+  }
+  GpuAirlightOptions opt;
+  if (Status st = gl->setAirlight(opt); !st && failure.empty()) failure = st.error().message;
+  const auto tWarm = Clock::now();
+  if (failure.empty())
+    if (Status st = gl->render(scene, surfaceGpu, air); !st) failure = st.error().message;
+  const double warmMs = msSince(tWarm);
+  for (int f = 0; f < o.frames && failure.empty(); ++f) {
+    const auto t0 = Clock::now();
+    if (Status st = gl->render(scene, surfaceGpu, air); !st) failure = st.error().message;
+    total.ms.push_back(msSince(t0));
+    airGpu.ms.push_back(gl->stats().airlight_ms);
+  }
+  (void)gl->setAirlight(std::nullopt);
+  auto cpu = cpuFrames(scene, surface, threads, o);
+  if (!failure.empty()) {
+    gpu["note"] = "GPU airlight failed: " + failure;
+  } else if (!cpu) {
+    gpu["note"] = "CPU accurate failed: " + cpu.error().message;
+  } else {
+    const std::vector<double> lg = luminances(air), lc = luminances(cpu->fullImage.rgb);
+    const double sc = sumOf(lc);
+    gpu = {{"available", true},
+           {"note", gl->description()},
+           {"width", w},
+           {"height", h},
+           {"pieces", opt.pieces},
+           {"first_frame_ms", warmMs},
+           {"surface_only", surfaceOnly.toJson()},
+           {"surface_and_airlight", total.toJson()},
+           {"airlight_gpu_time", airGpu.toJson()},
+           {"cpu_accurate_full", cpu->full.toJson()},
+           {"cpu_accurate_subsampled", cpu->sub.toJson()},
+           {"vs_cpu_full", relativeErrors(lg, lc).toJson()},
+           {"sum_ratio", sc > 0.0 ? sumOf(lg) / sc : 0.0}};
+  }
+  return gpu;
+}
 
-  // Near-field lamps.
+// Near-field lamps at `o.apertureSize`: the scene's vehicle lamps given a 0.20 × 0.10 m face
+// (Gauss rules of point lamps) against the point lamps, on the same CPU surfaces: the cost of
+// the first and steady frames, and the airlight's change.
+json nearFieldStage(const Scene& base, const BenchOptions& o, unsigned threads) {
   json ap;
-  if (parseSize(o.apertureSize, w, h)) {
-    const Scene scene = resized(base, w, h);
-    Scene faced = scene;
-    faced.lamps.clear();
-    int vehicle = 0;
-    for (SceneLamp l : scene.lamps) {
-      if (l.mount == LampMount::Vehicle) {
-        l.aperture = Aperture{ApertureShape::Rectangle, 0.20, 0.10, kDefaultApertureSamples};
-        ++vehicle;
-      }
-      for (SceneLamp& p : expandSceneLamp(l)) faced.lamps.push_back(std::move(p));
+  int w = 0, h = 0;
+  if (!parseSize(o.apertureSize, w, h)) return ap;
+  const Scene scene = resized(base, w, h);
+  Scene faced = scene;
+  faced.lamps.clear();
+  int vehicle = 0;
+  for (SceneLamp l : scene.lamps) {
+    if (l.mount == LampMount::Vehicle) {
+      l.aperture = Aperture{ApertureShape::Rectangle, 0.20, 0.10, kDefaultApertureSamples};
+      ++vehicle;
     }
-    SurfaceBuffers surface;
-    renderSurfacesCpu(scene, surface);  // the same surfaces for both: the airlight's difference only
-    auto point = cpuFrames(scene, surface, threads, o);
-    auto face = cpuFrames(faced, surface, threads, o);
-    if (!point || !face) {
-      ap["note"] = !point ? point.error().message : face.error().message;
-    } else {
-      const std::vector<double> lp = luminances(point->fullImage.rgb), lf = luminances(face->fullImage.rgb);
-      const double sp = sumOf(lp);
-      ap = {{"width", w},
-            {"height", h},
-            {"vehicle_lamps", vehicle},
-            {"face_m", {0.20, 0.10}},
-            {"samples_per_axis", kDefaultApertureSamples},
-            {"point_lamps", faced.lamps.size()},
-            {"point", {{"first_frame_ms", point->firstMs}, {"view_tables_ms", point->tableMs},
-                       {"subsampled", point->sub.toJson()}, {"full", point->full.toJson()}}},
-            {"aperture", {{"first_frame_ms", face->firstMs}, {"view_tables_ms", face->tableMs},
-                          {"subsampled", face->sub.toJson()}, {"full", face->full.toJson()}}},
-            {"aperture_vs_point_full", relativeErrors(lf, lp).toJson()},
-            {"sum_ratio", sp > 0.0 ? sumOf(lf) / sp : 0.0}};
-    }
+    for (SceneLamp& p : expandSceneLamp(l)) faced.lamps.push_back(std::move(p));
   }
-  out["near_field"] = ap;
+  SurfaceBuffers surface;
+  renderSurfacesCpu(scene, surface);  // the same surfaces for both: the airlight's difference only
+  auto point = cpuFrames(scene, surface, threads, o);
+  auto face = cpuFrames(faced, surface, threads, o);
+  if (!point || !face) {
+    ap["note"] = !point ? point.error().message : face.error().message;
+    return ap;
+  }
+  const std::vector<double> lp = luminances(point->fullImage.rgb), lf = luminances(face->fullImage.rgb);
+  const double sp = sumOf(lp);
+  return {{"width", w},
+          {"height", h},
+          {"vehicle_lamps", vehicle},
+          {"face_m", {0.20, 0.10}},
+          {"samples_per_axis", kDefaultApertureSamples},
+          {"point_lamps", faced.lamps.size()},
+          {"point", {{"first_frame_ms", point->firstMs}, {"view_tables_ms", point->tableMs},
+                     {"subsampled", point->sub.toJson()}, {"full", point->full.toJson()}}},
+          {"aperture", {{"first_frame_ms", face->firstMs}, {"view_tables_ms", face->tableMs},
+                        {"subsampled", face->sub.toJson()}, {"full", face->full.toJson()}}},
+          {"aperture_vs_point_full", relativeErrors(lf, lp).toJson()},
+          {"sum_ratio", sp > 0.0 ? sumOf(lf) / sp : 0.0}};
+}
+
+/// Issue 7's additions beyond the paper, each at its own size.
+json benchAdditions(const Scene& base, const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
+  json out;
+  out["gpu_airlight"] = gpuAirlightStage(base, o, threads, gl);
+  out["near_field"] = nearFieldStage(base, o, threads);
   return out;
 }
 
@@ -844,13 +854,8 @@ int run(BenchOptions o) {
   std::printf("  machine   %s, %u logical cores; %u threads\n", cpu.c_str(), std::thread::hardware_concurrency(), threads);
   std::printf("  compiler  GCC %s; build type %s; flags '%s'\n", __VERSION__, FOGBEAM_BUILD_TYPE, compileFlags().c_str());
   std::unique_ptr<GlSurfacePass> gl;
-  std::unique_ptr<GlAirlightPass> glAir;
   if (auto created = GlSurfacePass::create()) gl = std::move(created).value();
   else std::printf("  surface   GL unavailable (%s); CPU planes only\n", created.error().message.c_str());
-  if (gl) {
-    if (auto created = GlAirlightPass::create()) glAir = std::move(created).value();
-    else std::printf("  airlight  GLSL pass unavailable: %s\n", created.error().message.c_str());
-  }
   const std::string road = scene->gltf_path ? "glTF " + *scene->gltf_path + (gl ? "" : " (not drawn without GL)") : "planes only";
   std::printf("  scene     %zu lamps, %zu planes, K_t %.4f /m, %s; geometry: %s\n", scene->lamps.size(),
               scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str(), road.c_str());
@@ -892,7 +897,7 @@ int run(BenchOptions o) {
   root["airlight_paths"] = ev.accurate.describe();
   root["sizes"] = json::array();
   for (const auto& [w, h] : sizes) {
-    json r = benchSize(*scene, w, h, o, ev, pool, gl.get(), glAir.get());
+    json r = benchSize(*scene, w, h, o, ev, pool, gl.get());
     printSize(r);
     std::fflush(stdout);
     root["sizes"].push_back(std::move(r));

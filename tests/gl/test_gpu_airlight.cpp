@@ -164,5 +164,31 @@ TEST(GpuAirlight, RefusesBadOptionsAndAFrameWithoutTheStage) {
   EXPECT_FALSE((*gl)->collect(surf, air).has_value());
 }
 
+// The G table follows the options it is used with, also when the stage was off in between: a
+// pass switched from the default table to a coarse one gives what a fresh pass with the coarse
+// table gives, and not the default table's image.
+TEST(GpuAirlight, TableFollowsItsResolutionAcrossOffAndOn) {
+  auto gl = GlSurfacePass::create();
+  if (!gl) GTEST_SKIP() << gl.error().message;
+  const Scene scene = road(24, 14, makeHenyeyGreenstein(0.85).value());
+  GpuAirlightOptions coarse;
+  coarse.table.g_table_theta = 128;
+  coarse.table.g_table_k = 24;
+  SurfaceBuffers surf;
+  std::vector<float> fine, switched, fresh;
+  ASSERT_TRUE((*gl)->setAirlight(GpuAirlightOptions{}).has_value());
+  ASSERT_TRUE((*gl)->render(scene, surf, fine).has_value());
+  ASSERT_TRUE((*gl)->setAirlight(std::nullopt).has_value());
+  ASSERT_TRUE((*gl)->render(scene, surf).has_value());
+  ASSERT_TRUE((*gl)->setAirlight(coarse).has_value());
+  ASSERT_TRUE((*gl)->render(scene, surf, switched).has_value());
+  auto other = GlSurfacePass::create();
+  ASSERT_TRUE(other.has_value()) << other.error().message;
+  ASSERT_TRUE((*other)->setAirlight(coarse).has_value());
+  ASSERT_TRUE((*other)->render(scene, surf, fresh).has_value());
+  EXPECT_EQ(switched, fresh);
+  EXPECT_NE(switched, fine);
+}
+
 }  // namespace
 }  // namespace fogbeam

@@ -1,6 +1,8 @@
 // fogbeam — headless EGL: device platform (NVIDIA and other GPUs) or Mesa surfaceless.
 #include "egl_context.hpp"
 
+#include "gl_errors.hpp"
+
 #include <dlfcn.h>
 
 #include <cstring>

@@ -1,5 +1,5 @@
-// fogbeam — EGL and GL error codes by name.
-#include "gl_headers.hpp"
+// fogbeam — EGL and GL error codes by name (gl_errors.hpp).
+#include "gl_errors.hpp"
 
 #include <cstdio>
 

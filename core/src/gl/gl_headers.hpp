@@ -6,18 +6,3 @@
 
 #include <epoxy/egl.h>  // IWYU pragma: export
 #include <epoxy/gl.h>   // IWYU pragma: export
-
-#include <string>
-
-namespace fogbeam::gl {
-
-/// "EGL_BAD_CONFIG", … ; "EGL error 0x…" for unknown codes.
-[[nodiscard]] std::string eglErrorName(EGLint code);
-/// "GL_INVALID_OPERATION", … ; "GL error 0x…" for unknown codes.
-[[nodiscard]] std::string glErrorName(GLenum code);
-/// "<what> failed: EGL_BAD_…" from eglGetError().
-[[nodiscard]] std::string eglFailure(const std::string& what);
-/// Drains glGetError(); returns "" when there was none, else "<where>: GL_INVALID_ENUM, …".
-[[nodiscard]] std::string glErrors(const std::string& where);
-
-}  // namespace fogbeam::gl

@@ -63,21 +63,20 @@ Result<std::string> shaderSource(const std::string& name) {
 
 namespace {
 
-Result<GLuint> compileShader(GLenum stage, const std::string& name) {
+Result<Shader> compileShader(GLenum stage, const std::string& name) {
   auto src = shaderSource(name);
   if (!src) return src.error();
-  const GLuint sh = glCreateShader(stage);
+  Shader sh(glCreateShader(stage));
   const char* text = src->c_str();
-  glShaderSource(sh, 1, &text, nullptr);
-  glCompileShader(sh);
+  glShaderSource(sh.get(), 1, &text, nullptr);
+  glCompileShader(sh.get());
   GLint ok = GL_FALSE;
-  glGetShaderiv(sh, GL_COMPILE_STATUS, &ok);
+  glGetShaderiv(sh.get(), GL_COMPILE_STATUS, &ok);
   if (ok != GL_TRUE) {
     GLint len = 0;
-    glGetShaderiv(sh, GL_INFO_LOG_LENGTH, &len);
+    glGetShaderiv(sh.get(), GL_INFO_LOG_LENGTH, &len);
     std::string log(static_cast<std::size_t>(std::max(len, 1)), '\0');
-    glGetShaderInfoLog(sh, len, nullptr, log.data());
-    glDeleteShader(sh);
+    glGetShaderInfoLog(sh.get(), len, nullptr, log.data());
     return Error{"shader " + name + " does not compile:\n" + log};
   }
   return sh;
@@ -85,28 +84,24 @@ Result<GLuint> compileShader(GLenum stage, const std::string& name) {
 
 }  // namespace
 
-Result<GLuint> linkProgram(const std::string& vert, const std::string& frag) {
+Result<Program> linkProgram(const std::string& vert, const std::string& frag) {
   auto vs = compileShader(GL_VERTEX_SHADER, vert);
   if (!vs) return vs.error();
   auto fs = compileShader(GL_FRAGMENT_SHADER, frag);
-  if (!fs) {
-    glDeleteShader(*vs);
-    return fs.error();
-  }
-  const GLuint prog = glCreateProgram();
-  glAttachShader(prog, *vs);
-  glAttachShader(prog, *fs);
-  glLinkProgram(prog);
-  glDeleteShader(*vs);
-  glDeleteShader(*fs);
+  if (!fs) return fs.error();
+  Program prog(glCreateProgram());
+  glAttachShader(prog.get(), vs->get());
+  glAttachShader(prog.get(), fs->get());
+  glLinkProgram(prog.get());
+  // The shaders are deleted when vs and fs go out of scope: GL keeps them while attached, and
+  // frees them with the program.
   GLint ok = GL_FALSE;
-  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  glGetProgramiv(prog.get(), GL_LINK_STATUS, &ok);
   if (ok != GL_TRUE) {
     GLint len = 0;
-    glGetProgramiv(prog, GL_INFO_LOG_LENGTH, &len);
+    glGetProgramiv(prog.get(), GL_INFO_LOG_LENGTH, &len);
     std::string log(static_cast<std::size_t>(std::max(len, 1)), '\0');
-    glGetProgramInfoLog(prog, len, nullptr, log.data());
-    glDeleteProgram(prog);
+    glGetProgramInfoLog(prog.get(), len, nullptr, log.data());
     return Error{"program " + vert + " + " + frag + " does not link:\n" + log};
   }
   return prog;

@@ -1,8 +1,9 @@
-// fogbeam — GLSL sources of the surface pass: embedded at build time from shaders/, or read
+// fogbeam — GLSL sources of the GL passes: embedded at build time from shaders/, or read
 // from $FOGBEAM_SHADER_DIR at run time when that variable is set (shader development).
 #pragma once
 
 #include "gl_headers.hpp"
+#include "gl_object.hpp"
 
 #include <fogbeam/util/result.hpp>
 
@@ -23,7 +24,7 @@ extern const std::size_t kEmbeddedShaderCount;
 [[nodiscard]] Result<std::string> shaderSource(const std::string& name);
 
 /// Compiles two shaders from the library and links them; errors carry the info log.
-/// A GL context must be current.
-[[nodiscard]] Result<GLuint> linkProgram(const std::string& vert, const std::string& frag);
+/// A GL context must be current; the program belongs to it.
+[[nodiscard]] Result<Program> linkProgram(const std::string& vert, const std::string& frag);
 
 }  // namespace fogbeam::gl

@@ -4,6 +4,7 @@
 #include <fogbeam/render/airlight_kernels.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -225,9 +226,6 @@ AirlightImageEvaluator::FastPathView AirlightImageEvaluator::fastPathView() cons
   v.isoTable = st.isoTable.get();
   v.isoLamps = &st.isoParams;
   v.viewTables = &st.viewTables;
-  for (const auto& g : st.rayGuards)
-    if (g.r2 >= 0.0) v.guards.push_back({g.a, g.b, g.r2});
-  v.complete = st.rayLamps.empty() && st.pencilLamps.empty();
   return v;
 }
 
@@ -794,14 +792,129 @@ void subsampleTile(const FrameCtx& f, Scratch& sc, const std::vector<float>& coa
   sc.fillSeconds += since(tf);
 }
 
-}  // namespace
+// ---------------------------------------------------------------------------------------------
+// The stages of evaluate(), in the order it runs them. The first five bring the lamps and tables
+// to this frame's camera (what the kernels read); the last ones cover the image.
+
+using State = AirlightImageEvaluator::State;
+using Lamps = std::vector<AirlightEvaluator>;
+
+// This frame's camera as the stages use it: the rotation into camera coordinates (x forward,
+// y left, z up), the focal length and the principal point in pixels.
+struct CameraFrame {
+  explicit CameraFrame(const Camera& c)
+      : cam(c), camFromWorld(glm::transpose(c.worldFromCamera)), focal(c.focalLengthPixels()),
+        principal(c.principalPoint()) {}
+  // A world point relative to the eye, in camera coordinates (metres).
+  [[nodiscard]] Vec3 toCamera(const Vec3& world_m) const { return camFromWorld * (world_m - cam.position_m); }
+
+  const Camera& cam;
+  Mat3 camFromWorld;
+  double focal;   // pixels
+  Vec2 principal; // pixels, (W/2, H/2) for a centred camera
+};
+
+// Stage "prepare lamps": the isotropic lamps' kernel parameters in camera coordinates
+// (st.isoParams; kernels::IsoLamp: position, K_t, the weight ϖ K_t I₀ · colour of the F-table
+// formula, airlight_kernels.hpp). Lamps switched off, and lamps more than
+// kMaxIsoOpticalDistance optical depths away (their airlight is below the kernels' float
+// resolution), are left out of this frame. Sky-table slots are kept per isoLamps entry, so a
+// lamp keeps its table while it leaves and re-enters.
+void prepareIsoLamps(State& st, const Lamps& lamps, const CameraFrame& cf) {
+  st.isoParams.clear();
+  st.isoSlot.clear();
+  st.isoSky.resize(2 * kernels::kIsoSkyNodes * st.isoLamps.size());
+  st.isoSkyKey.resize(st.isoLamps.size(), {-1.0f, -1.0f});
+  st.isoSkyStale.resize(st.isoLamps.size());
+  for (std::size_t q = 0; q < st.isoLamps.size(); ++q) {
+    const std::size_t li = st.isoLamps[q];
+    if (!st.enabled[li]) continue;
+    const AirlightEvaluator& ev = lamps[li];
+    const Vec3 p = cf.toCamera(ev.lamp().position_m);
+    const double kt = ev.medium().extinction_per_m;
+    if (kt * glm::length(p) > kernels::kMaxIsoOpticalDistance) continue;
+    const double i0 = std::get<IsotropicProfile>(ev.lamp().profile->model()).intensity_cd;
+    kernels::IsoLamp l;
+    for (int c = 0; c < 3; ++c) {
+      l.pos[c] = static_cast<float>(p[c]);
+      l.weight[c] = static_cast<float>(ev.medium().albedo * kt * i0 * ev.lamp().color[c]);
+    }
+    l.kt = static_cast<float>(kt);
+    kernels::setIsoDirection(l);
+    l.sky = st.isoSky.data() + 2 * kernels::kIsoSkyNodes * q;
+    st.isoParams.push_back(l);
+    st.isoSlot.push_back(q);
+  }
+}
+
+// Stage "refresh sky tables": the per-lamp tables over the angle to the lamp that sky pixels
+// of isotropic lamps read, rebuilt for the lamps whose distance or fog changed (every moving
+// lamp, every frame the eye moves): ~0.1 ms each, one lamp per thread. Returns the seconds spent
+// (0 when every table was current).
+double refreshSkyTables(State& st, ThreadPool& pool) {
+  const auto ts = std::chrono::steady_clock::now();
+  bool any = false;
+  for (std::size_t k = 0; k < st.isoParams.size(); ++k) {
+    const kernels::IsoLamp& l = st.isoParams[k];
+    const float D = std::sqrt(l.pos[0] * l.pos[0] + l.pos[1] * l.pos[1] + l.pos[2] * l.pos[2]);
+    const std::array<float, 2> key{D, l.kt};
+    st.isoSkyStale[k] = key != st.isoSkyKey[st.isoSlot[k]];
+    if (st.isoSkyStale[k]) st.isoSkyKey[st.isoSlot[k]] = key;
+    any = any || st.isoSkyStale[k];
+  }
+  if (!any) return 0.0;
+  State* sp = &st;
+  pool.parallelFor(st.isoParams.size(), [sp](std::size_t k) {
+    if (!sp->isoSkyStale[k]) return;
+    kernels::buildIsoSky(*sp->isoTable, sp->isoParams[k], sp->isoSky.data() + 2 * kernels::kIsoSkyNodes * sp->isoSlot[k]);
+  });
+  return since(ts);
+}
+
+// The kTablesPerLamp view tables of one vehicle lamp (`tables`) and its per-ray guard disc, for
+// the pose in `key`: the frustum table, and when the lamp is in front of the eye the insets
+// around its image. `viewD` is the distance scale shared by every vehicle lamp's tables.
+void buildLampViewTables(const AirlightEvaluator& ev, const Camera& cam, const ViewKey& key, const FastPathOptions& fast,
+                         double viewD, ThreadPool& pool, kernels::ViewTable* tables, State::RayGuard& guard) {
+  tables[0] = kernels::ViewTable::build(ev, cam, fast.view_table_step_deg, fast.view_table_distances, pool, viewD);
+  for (std::size_t t = 1; t < kTablesPerLamp; ++t) tables[t] = kernels::ViewTable{};
+  guard = {};
+  if (key.lampInCamera.x <= 0.0) return;
+  // Near its own image a lamp's airlight changes fast with direction: a 1/α peak, which
+  // bilinear interpolation over a step δ follows within (δ/α)²/8 (1 % from α = 5δ), and
+  // the beam's cut-off crossing the ray close to the lamp. Measured on the bench scene
+  // (docs/airlight.md), the frustum table is within 1 % from 15 of its steps out. Insets,
+  // each 4× finer than the last, cover the disc inside down to 5 of their own steps; the
+  // pixels left (about 2 px across at 1080p) are evaluated per ray.
+  constexpr double kMainGuardSteps = 15.0, kInsetRefine = 4.0, kInsetGuardSteps = 5.0;
+  const double la = key.lampInCamera.y / key.lampInCamera.x, lb = key.lampInCamera.z / key.lampInCamera.x;
+  double step = 1.0 / static_cast<double>(tables[0].invStep);
+  double outer = kMainGuardSteps * step;
+  tables[0].guardA = static_cast<float>(la);
+  tables[0].guardB = static_cast<float>(lb);
+  tables[0].innerR2 = static_cast<float>(outer * outer);
+  for (std::size_t t = 1; t < kTablesPerLamp; ++t) {
+    step /= kInsetRefine;
+    const double inner = kInsetGuardSteps * step;
+    const int nodes = static_cast<int>(std::ceil(2.0 * (outer + 2.0 * step) / step)) + 1;
+    kernels::ViewTable& in = tables[t];
+    in = kernels::ViewTable::buildWindow(ev, cam, la - outer - 2.0 * step, lb - outer - 2.0 * step, nodes, nodes, step,
+                                         fast.view_table_distances, pool, viewD);
+    in.guardA = static_cast<float>(la);
+    in.guardB = static_cast<float>(lb);
+    in.outerR2 = static_cast<float>(outer * outer);
+    in.innerR2 = static_cast<float>(inner * inner);
+    outer = inner;
+  }
+  guard = {la, lb, outer * outer};
+}
 
 // Sums the frustum tables of enabled vehicle lamps of one colour (same grid) into one, and lists
 // this frame's table lookups (State::tableUses): merged tables over the whole image; inside a
 // merged lamp's hole, its own frustum table subtracted again (the hole is where its insets and
 // per-ray guard take over); frustum tables that were not merged; insets over their rings.
-static void mergeViewTables(AirlightImageEvaluator::State& st) {
-  using TableUse = AirlightImageEvaluator::State::TableUse;
+void mergeViewTables(State& st) {
+  using TableUse = State::TableUse;
   st.merged.clear();
   st.mergedFrom.clear();
   std::vector<char> inMerged(st.viewLamps.size(), 0);
@@ -852,142 +965,59 @@ static void mergeViewTables(AirlightImageEvaluator::State& st) {
   st.mergedValid = true;
 }
 
-void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt,
-                                      AirlightImage& out) {
-  const auto t0 = std::chrono::steady_clock::now();
-  State& st = *state_;
-  const Camera& cam = scene.camera;
-  const auto n = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);
-  if (out.width != cam.width || out.height != cam.height || out.rgb.size() != 3 * n) {
-    out.width = cam.width;
-    out.height = cam.height;
-    out.rgb.assign(3 * n, 0.0f);
-  }
-  out.table_seconds = 0.0;
-  const Mat3 camFromWorld = glm::transpose(cam.worldFromCamera);
-  const double focal = cam.focalLengthPixels();
-  const Vec2 principal = cam.principalPoint();  // (W/2, H/2) for a centred camera
-
-  // Lamps in camera coordinates: isotropic kernel parameters, view-table validity.
-  st.isoParams.clear();
-  st.isoSlot.clear();
-  st.isoSky.resize(2 * kernels::kIsoSkyNodes * st.isoLamps.size());
-  st.isoSkyKey.resize(st.isoLamps.size(), {-1.0f, -1.0f});
-  st.isoSkyStale.resize(st.isoLamps.size());
-  for (std::size_t q = 0; q < st.isoLamps.size(); ++q) {
-    const std::size_t li = st.isoLamps[q];
-    if (!st.enabled[li]) continue;
-    const AirlightEvaluator& ev = lamps_[li];
-    const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
-    const double kt = ev.medium().extinction_per_m;
-    if (kt * glm::length(p) > kernels::kMaxIsoOpticalDistance) continue;
-    const double i0 = std::get<IsotropicProfile>(ev.lamp().profile->model()).intensity_cd;
-    kernels::IsoLamp l;
-    for (int c = 0; c < 3; ++c) {
-      l.pos[c] = static_cast<float>(p[c]);
-      l.weight[c] = static_cast<float>(ev.medium().albedo * kt * i0 * ev.lamp().color[c]);
-    }
-    l.kt = static_cast<float>(kt);
-    kernels::setIsoDirection(l);
-    l.sky = st.isoSky.data() + 2 * kernels::kIsoSkyNodes * q;
-    st.isoParams.push_back(l);
-    st.isoSlot.push_back(q);
-  }
-  // Sky tables of lamps whose distance or fog changed (every moving lamp, every frame the eye
-  // moves): ~0.1 ms each, one lamp per thread.
-  {
-    const auto ts = std::chrono::steady_clock::now();
-    bool any = false;
-    for (std::size_t k = 0; k < st.isoParams.size(); ++k) {
-      const kernels::IsoLamp& l = st.isoParams[k];
-      const float D = std::sqrt(l.pos[0] * l.pos[0] + l.pos[1] * l.pos[1] + l.pos[2] * l.pos[2]);
-      const std::array<float, 2> key{D, l.kt};
-      st.isoSkyStale[k] = key != st.isoSkyKey[st.isoSlot[k]];
-      if (st.isoSkyStale[k]) st.isoSkyKey[st.isoSlot[k]] = key;
-      any = any || st.isoSkyStale[k];
-    }
-    if (any) {
-      State* sp = &st;
-      pool_->parallelFor(st.isoParams.size(), [sp](std::size_t k) {
-        if (!sp->isoSkyStale[k]) return;
-        kernels::buildIsoSky(*sp->isoTable, sp->isoParams[k],
-                             sp->isoSky.data() + 2 * kernels::kIsoSkyNodes * sp->isoSlot[k]);
-      });
-      out.table_seconds += since(ts);
-    }
-  }
+// Stage "refresh view tables": the vehicle lamps' view tables, rebuilt only for lamps whose pose
+// relative to the camera, the frustum or the fog changed (ViewKey; a table costs seconds, a
+// fixed rig builds once), then merged again when a table or the set of enabled lamps changed.
+// Returns the seconds spent building and merging.
+double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const CameraFrame& cf) {
+  const Camera& cam = cf.cam;
+  double seconds = 0.0;
   // One distance scale for every vehicle lamp's tables, so that their frustum tables share a
   // grid and can be merged.
   double viewD = 0.0;
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
-    const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
+    const AirlightEvaluator& ev = lamps[st.viewLamps[v]];
     viewD = std::max(viewD, kernels::ViewTable::defaultDistanceScale(
                                 ev.medium().extinction_per_m, glm::length(ev.lamp().position_m - cam.position_m)));
   }
   bool viewChanged = false;
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
     st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
-    const AirlightEvaluator& ev = lamps_[st.viewLamps[v]];
-    const ViewKey key{camFromWorld * (ev.lamp().position_m - cam.position_m),
-                      camFromWorld * ev.lamp().worldFromLamp,
+    const AirlightEvaluator& ev = lamps[st.viewLamps[v]];
+    const ViewKey key{cf.toCamera(ev.lamp().position_m),
+                      cf.camFromWorld * ev.lamp().worldFromLamp,
                       cam.fov_x,
                       static_cast<double>(cam.height) / cam.width,
-                      principal.x / cam.width,
-                      principal.y / cam.height,
+                      cf.principal.x / cam.width,
+                      cf.principal.y / cam.height,
                       ev.medium().extinction_per_m,
                       ev.medium().albedo};
     if (st.viewValid[v] && st.viewKeys[v].sameAs(key)) continue;
     viewChanged = true;
     kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
-    tables[0] = kernels::ViewTable::build(ev, cam, st.fast.view_table_step_deg, st.fast.view_table_distances, *pool_,
-                                          viewD);
-    for (std::size_t t = 1; t < kTablesPerLamp; ++t) tables[t] = kernels::ViewTable{};
-    st.rayGuards[v] = {};
-    if (key.lampInCamera.x > 0.0) {
-      // Near its own image a lamp's airlight changes fast with direction: a 1/α peak, which
-      // bilinear interpolation over a step δ follows within (δ/α)²/8 (1 % from α = 5δ), and
-      // the beam's cut-off crossing the ray close to the lamp. Measured on the bench scene
-      // (docs/airlight.md), the frustum table is within 1 % from 15 of its steps out. Insets,
-      // each 4× finer than the last, cover the disc inside down to 5 of their own steps; the
-      // pixels left (about 2 px across at 1080p) are evaluated per ray.
-      constexpr double kMainGuardSteps = 15.0, kInsetRefine = 4.0, kInsetGuardSteps = 5.0;
-      const double la = key.lampInCamera.y / key.lampInCamera.x, lb = key.lampInCamera.z / key.lampInCamera.x;
-      double step = 1.0 / static_cast<double>(tables[0].invStep);
-      double outer = kMainGuardSteps * step;
-      tables[0].guardA = static_cast<float>(la);
-      tables[0].guardB = static_cast<float>(lb);
-      tables[0].innerR2 = static_cast<float>(outer * outer);
-      for (std::size_t t = 1; t < kTablesPerLamp; ++t) {
-        step /= kInsetRefine;
-        const double inner = kInsetGuardSteps * step;
-        const int nodes = static_cast<int>(std::ceil(2.0 * (outer + 2.0 * step) / step)) + 1;
-        kernels::ViewTable& in = tables[t];
-        in = kernels::ViewTable::buildWindow(ev, cam, la - outer - 2.0 * step, lb - outer - 2.0 * step, nodes, nodes,
-                                             step, st.fast.view_table_distances, *pool_, viewD);
-        in.guardA = static_cast<float>(la);
-        in.guardB = static_cast<float>(lb);
-        in.outerR2 = static_cast<float>(outer * outer);
-        in.innerR2 = static_cast<float>(inner * inner);
-        outer = inner;
-      }
-      st.rayGuards[v] = {la, lb, outer * outer};
-    }
+    buildLampViewTables(ev, cam, key, st.fast, viewD, pool, tables, st.rayGuards[v]);
     st.viewKeys[v] = key;
     st.viewValid[v] = true;
-    for (std::size_t t = 0; t < kTablesPerLamp; ++t) out.table_seconds += tables[t].build_seconds;
+    for (std::size_t t = 0; t < kTablesPerLamp; ++t) seconds += tables[t].build_seconds;
   }
   if (viewChanged || st.mergedEnabled != st.viewEnabled) st.mergedValid = false;
   if (!st.mergedValid) {
     const auto tm = std::chrono::steady_clock::now();
     mergeViewTables(st);
-    out.table_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tm).count();
+    seconds += since(tm);
   }
-  // Moving lamps through the pencil: a new integrator state when the eye or the lamp moved
-  // (spokes are then sampled again as pixels need them; their memory is kept).
+  return seconds;
+}
+
+// Stage "refresh pencils": moving lamps through the pencil get a new integrator state when the
+// eye or the lamp moved (spokes are then sampled again as pixels need them; their memory is
+// kept). An integrator that cannot be built leaves the lamp dark for the frame (its options
+// were validated at build(), so this does not happen with valid lamps).
+void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
   st.pencils.resize(st.pencilLamps.size());
   st.pencilKeys.resize(st.pencilLamps.size());
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-    const AirlightEvaluator& ev = lamps_[st.pencilLamps[q]];
+    const AirlightEvaluator& ev = lamps[st.pencilLamps[q]];
     const State::PencilKey key{&ev, cam.position_m, ev.lamp().position_m, ev.lamp().worldFromLamp};
     State::PencilKey& old = st.pencilKeys[q];
     const bool same = st.pencils[q] && old.lamp == key.lamp && old.eye == key.eye && old.position == key.position &&
@@ -1002,19 +1032,30 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     }
     old = key;
   }
-  // Image positions of lamps in front of the camera (capacity kept between frames).
-  st.lampPixels.clear();
-  for (std::size_t li = 0; li < lamps_.size(); ++li) {
-    if (!st.enabled[li]) continue;
-    const AirlightEvaluator& ev = lamps_[li];
-    const Vec3 p = camFromWorld * (ev.lamp().position_m - cam.position_m);
-    if (p.x <= 0.0) continue;
-    st.lampPixels.emplace_back(principal.x - focal * p.y / p.x, principal.y - focal * p.z / p.x);
-  }
+}
 
-  FrameCtx f{&st, &lamps_, &cam, &surface, &out,
-             kernels::PixelGeometry{static_cast<float>(principal.x), static_cast<float>(principal.y),
-                                    static_cast<float>(1.0 / focal)},
+// Stage "locate lamps": the image positions (pixels, x right, y down) of the enabled lamps in
+// front of the camera (st.lampPixels, capacity kept between frames). A lamp's own image is a
+// peak of airlight that a block's corners cannot see: the block test splits blocks within
+// lamp_guard_px of one.
+void locateLampImages(State& st, const Lamps& lamps, const CameraFrame& cf) {
+  st.lampPixels.clear();
+  for (std::size_t li = 0; li < lamps.size(); ++li) {
+    if (!st.enabled[li]) continue;
+    const Vec3 p = cf.toCamera(lamps[li].lamp().position_m);
+    if (p.x <= 0.0) continue;
+    st.lampPixels.emplace_back(cf.principal.x - cf.focal * p.y / p.x, cf.principal.y - cf.focal * p.z / p.x);
+  }
+}
+
+// Stage "plan the image": the frame's context for the image stages: coarse step, the distance
+// beyond which edges are ignored, the tiles and the coarse grid.
+FrameCtx planImage(const State& st, const Lamps& lamps, const Scene& scene, const SurfaceBuffers& surface,
+                   const SubsamplingOptions& opt, AirlightImage& out, const CameraFrame& cf) {
+  const Camera& cam = cf.cam;
+  FrameCtx f{&st, &lamps, &cam, &surface, &out,
+             kernels::PixelGeometry{static_cast<float>(cf.principal.x), static_cast<float>(cf.principal.y),
+                                    static_cast<float>(1.0 / cf.focal)},
              &opt};
   f.step = opt.coarse_step > 0 ? std::max(2, opt.coarse_step) : autoCoarseStep(cam);
   // Distance edges wholly beyond d_far, where the fog's transmittance e^{−K_t d} is below
@@ -1028,12 +1069,16 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   f.tilesY = tilesAlong(cam.height, f.tile);
   f.coarseX = cam.width <= 1 ? 1 : (cam.width - 1 + f.step - 1) / f.step + 1;
   f.coarseY = cam.height <= 1 ? 1 : (cam.height - 1 + f.step - 1) / f.step + 1;
+  return f;
+}
 
-  // Per-thread memory: sized on the first frame and when the tile size grows.
+// Per-thread memory (Scratch), sized on the first frame and when the tile size grows, so that
+// steady frames allocate nothing; the frame's figures are reset.
+void ensureScratch(State& st, const FrameCtx& f, std::size_t threads, std::size_t lampCount) {
   const std::size_t side = static_cast<std::size_t>(f.tile) + 1;
   const std::size_t batch = kernels::paddedSize(std::max(side * side, kChunk));
-  if (st.scratch.size() != pool_->size() || st.scratchBatch < batch || st.scratchTile < side) {
-    st.scratch.assign(pool_->size(), Scratch{});
+  if (st.scratch.size() != threads || st.scratchBatch < batch || st.scratchTile < side) {
+    st.scratch.assign(threads, Scratch{});
     for (Scratch& sc : st.scratch) {
       for (auto* v : {&sc.x, &sc.y, &sc.d, &sc.r, &sc.g, &sc.b, &sc.sx, &sc.sy, &sc.sd, &sc.sr, &sc.sg, &sc.sb})
         v->assign(batch, 0.0f);
@@ -1051,7 +1096,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
       sc.next.reserve(side * side);
       sc.leaves.reserve(side * side);
       sc.layered.reserve(side * side);
-      sc.tileLamps.reserve(lamps_.size());
+      sc.tileLamps.reserve(lampCount);
       sc.fill.reserve(side * side);
     }
     st.scratchBatch = batch;
@@ -1061,50 +1106,75 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     sc.evaluated = 0;
     sc.evalSeconds = sc.judgeSeconds = sc.fillSeconds = 0.0;
   }
-  const std::size_t tiles = static_cast<std::size_t>(f.tilesX) * static_cast<std::size_t>(f.tilesY);
-  // The closures hold two pointers, which std::function stores without allocating.
-  struct Job {
-    State* st;
-    const FrameCtx* f;
-  } job{&st, &f};
-  const Job* jp = &job;
-  if (opt.full) {
-    pool_->parallelForIndexed(tiles, [jp](std::size_t t, unsigned w) { fullTile(*jp->f, jp->st->scratch[w], t); });
-  } else {
-    // The coarse grid's corners, shared by neighbouring tiles: evaluated once, in chunks.
-    const std::size_t nCoarse = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
-    st.coarse.resize(3 * nCoarse);
-    pool_->parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
-      const FrameCtx& fc = *jp->f;
-      Scratch& sc = jp->st->scratch[w];
-      const std::size_t b = c * kChunk;
-      const std::size_t e = std::min(b + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
-      sc.n = 0;
-      for (std::size_t k = b; k < e; ++k) {
-        const int i = std::min(static_cast<int>(k % static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->width - 1);
-        const int j = std::min(static_cast<int>(k / static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->height - 1);
-        sc.x[sc.n] = static_cast<float>(i) + 0.5f;
-        sc.y[sc.n] = static_cast<float>(j) + 0.5f;
-        sc.d[sc.n] = fc.surf->distance[fc.idx(i, j)];
-        sc.slot[sc.n] = static_cast<std::uint32_t>(k - b);
-        ++sc.n;
-      }
-      groupSky(sc);
-      evaluateBatch(fc, sc);
-      float* dst = jp->st->coarse.data() + 3 * b;
-      for (std::size_t k = 0; k < sc.n; ++k) {
-        float* p = dst + 3 * static_cast<std::size_t>(sc.slot[k]);
-        p[0] = sc.r[k];
-        p[1] = sc.g[k];
-        p[2] = sc.b[k];
-      }
-      sc.n = 0;
-    });
-    pool_->parallelForIndexed(tiles, [jp](std::size_t t, unsigned w) {
-      subsampleTile(*jp->f, jp->st->scratch[w], jp->st->coarse, t);
-    });
-  }
-  // Stage figures: thread time per stage, divided by the threads (wall time when balanced).
+}
+
+// What the image stages hand to the pool: two pointers, which std::function stores without
+// allocating (steady frames allocate nothing).
+struct ImageJob {
+  State* st;
+  const FrameCtx* f;
+};
+
+std::size_t tileCount(const FrameCtx& f) {
+  return static_cast<std::size_t>(f.tilesX) * static_cast<std::size_t>(f.tilesY);
+}
+
+// Stage "full tiles" (SubsamplingOptions::full): every pixel evaluated, tile by tile.
+void evaluateFullTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
+  const ImageJob job{&st, &f};
+  const ImageJob* jp = &job;
+  pool.parallelForIndexed(tileCount(f), [jp](std::size_t t, unsigned w) { fullTile(*jp->f, jp->st->scratch[w], t); });
+}
+
+// Stage "coarse grid": the corners of the coarse blocks (every step-th pixel, and the last
+// column and row), shared by neighbouring tiles: evaluated once, in chunks of kChunk as whole
+// SIMD batches, into st.coarse (3 floats per corner, row-major over the grid).
+void evaluateCoarseGrid(State& st, const FrameCtx& f, ThreadPool& pool) {
+  const std::size_t nCoarse = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
+  st.coarse.resize(3 * nCoarse);
+  const ImageJob job{&st, &f};
+  const ImageJob* jp = &job;
+  pool.parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
+    const FrameCtx& fc = *jp->f;
+    Scratch& sc = jp->st->scratch[w];
+    const std::size_t b = c * kChunk;
+    const std::size_t e = std::min(b + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
+    sc.n = 0;
+    for (std::size_t k = b; k < e; ++k) {
+      const int i = std::min(static_cast<int>(k % static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->width - 1);
+      const int j = std::min(static_cast<int>(k / static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->height - 1);
+      sc.x[sc.n] = static_cast<float>(i) + 0.5f;
+      sc.y[sc.n] = static_cast<float>(j) + 0.5f;
+      sc.d[sc.n] = fc.surf->distance[fc.idx(i, j)];
+      sc.slot[sc.n] = static_cast<std::uint32_t>(k - b);
+      ++sc.n;
+    }
+    groupSky(sc);
+    evaluateBatch(fc, sc);
+    float* dst = jp->st->coarse.data() + 3 * b;
+    for (std::size_t k = 0; k < sc.n; ++k) {
+      float* p = dst + 3 * static_cast<std::size_t>(sc.slot[k]);
+      p[0] = sc.r[k];
+      p[1] = sc.g[k];
+      p[2] = sc.b[k];
+    }
+    sc.n = 0;
+  });
+}
+
+// Stage "tiles": each tile refined from the coarse grid, filled and written to the image by one
+// thread (subsampleTile: the header comment's block test, level by level).
+void refineTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
+  const ImageJob job{&st, &f};
+  const ImageJob* jp = &job;
+  pool.parallelForIndexed(tileCount(f), [jp](std::size_t t, unsigned w) {
+    subsampleTile(*jp->f, jp->st->scratch[w], jp->st->coarse, t);
+  });
+}
+
+// The frame's figures (AirlightImage): pixels evaluated, and thread time per stage divided by
+// the threads (wall time when the threads are kept busy).
+void reportFigures(const State& st, std::size_t threadCount, AirlightImage& out) {
   std::size_t evaluated = 0;
   double ev = 0.0, ju = 0.0, fi = 0.0;
   for (const Scratch& sc : st.scratch) {
@@ -1113,12 +1183,46 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
     ju += sc.judgeSeconds;
     fi += sc.fillSeconds;
   }
-  const double threads = static_cast<double>(pool_->size());
+  const double threads = static_cast<double>(threadCount);
   out.eval_seconds = ev / threads;
   out.judge_seconds = ju / threads;
   out.fill_seconds = fi / threads;
   out.evaluated = evaluated;
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt,
+                                      AirlightImage& out) {
+  const auto t0 = std::chrono::steady_clock::now();
+  State& st = *state_;
+  const CameraFrame cf(scene.camera);
+  const auto n = static_cast<std::size_t>(cf.cam.width) * static_cast<std::size_t>(cf.cam.height);
+  if (out.width != cf.cam.width || out.height != cf.cam.height || out.rgb.size() != 3 * n) {
+    out.width = cf.cam.width;
+    out.height = cf.cam.height;
+    out.rgb.assign(3 * n, 0.0f);
+  }
+
+  // Lamps and tables for this camera pose: what the kernels read.
+  prepareIsoLamps(st, lamps_, cf);
+  out.table_seconds = refreshSkyTables(st, *pool_);
+  out.table_seconds += refreshViewTables(st, lamps_, *pool_, cf);
+  refreshPencils(st, lamps_, cf.cam);
+  locateLampImages(st, lamps_, cf);
+
+  // The image: tiling and per-thread memory, then the pixels (every one, or the coarse grid and
+  // the tiles' refinement).
+  const FrameCtx f = planImage(st, lamps_, scene, surface, opt, out, cf);
+  ensureScratch(st, f, pool_->size(), lamps_.size());
+  if (opt.full) {
+    evaluateFullTiles(st, f, *pool_);
+  } else {
+    evaluateCoarseGrid(st, f, *pool_);
+    refineTiles(st, f, *pool_);
+  }
+  reportFigures(st, pool_->size(), out);
+  out.seconds = since(t0);
 }
 
 }  // namespace fogbeam

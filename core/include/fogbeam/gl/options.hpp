@@ -1,5 +1,5 @@
-// fogbeam — how a GL pass gets its EGL display and context (GlSurfacePass::create,
-// GlAirlightPass::create, gl::EglContext). Plain values, no GL or EGL type.
+// fogbeam — how the GL surface pass gets its EGL display and context (GlSurfacePass::create,
+// gl::EglContext). Plain values, no GL or EGL type.
 #pragma once
 
 namespace fogbeam {

@@ -12,7 +12,9 @@
 // fragment shader, in double precision) and the triangles of the scene's glTF 2.0 file
 // (rasterised; glTF (x, y, z) → fogbeam (z, x, y), see docs/surface_pass.md). No shadows.
 //
-// This header carries no GL or EGL type; the implementation lives in core/src/gl/.
+// This header carries no GL or EGL type; the implementation lives in core/src/gl/ (surface_pass.cpp,
+// with the GPU airlight stage, the readback ring and the lamp upload in classes of their own:
+// docs/surface_pass.md, "Code").
 // Thread-safety: one GlSurfacePass owns one GL context; use an instance from one thread at a
 // time (render() makes its context current on the calling thread). Separate instances may be
 // used from separate threads.
@@ -31,7 +33,6 @@
 
 namespace fogbeam {
 
-/// Timings of the latest render(), milliseconds.
 /// The GPU airlight stage (issue 7): the accurate airlight method per pixel in a fragment shader
 /// (shaders/airlight_accurate.frag), drawn after the surfaces from their distance attachment in
 /// the same context, so the airlight does not wait for a CPU round trip. Measured and spot
@@ -42,8 +43,9 @@ struct GpuAirlightOptions {
   AirlightOptions table{};     ///< G-moment table resolution (as AirlightMethod::Accurate)
 };
 
+/// Timings of the latest collect() (or render()), milliseconds.
 struct GlSurfaceStats {
-  double surface_ms = 0.0;   ///< GPU time of the surface draws (GL_TIME_ELAPSED; CPU wall time if no timer query)
+  double surface_ms = 0.0;   ///< GPU time of the surface draws (GL_TIME_ELAPSED; 0 without timer queries)
   double readback_ms = 0.0;  ///< CPU time waiting for the PBO fence, mapping and copying into SurfaceBuffers
   double airlight_ms = 0.0;  ///< GPU time of the airlight draw (GL_TIME_ELAPSED; 0 without the stage or the query)
   double submit_ms = 0.0;    ///< CPU time to upload lamps/planes and issue the draws and the readback

@@ -37,7 +37,6 @@
 #include <fogbeam/util/result.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
-#include <array>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -131,16 +130,14 @@ class AirlightImageEvaluator {
   /// Bytes held by this evaluator's fast-path tables (view tables and the F table).
   [[nodiscard]] std::size_t fastTableBytes() const noexcept;
 
-  /// The fast path's tables and the latest frame's lamp parameters, for the GL twin of the
-  /// kernels (GlAirlightPass). Valid until the next evaluate(). `complete` is false when some
-  /// lamps go per ray (they are not in the tables); `guards` lists the discs (tangent-plane
-  /// centre a, b and squared radius) where vehicle lamps go per ray.
+  /// The fast path's tables and the latest frame's isotropic-lamp parameters, for running the
+  /// kernels on their own (`fogbeam bench` times them per SIMD target): those of the latest
+  /// evaluate(), valid until the next. `isoTable` is null without isotropic lamps; `viewTables`
+  /// holds per vehicle lamp its frustum table and insets (empty tables where none was built).
   struct FastPathView {
     const kernels::IsoTable* isoTable = nullptr;
     const std::vector<kernels::IsoLamp>* isoLamps = nullptr;
     const std::vector<kernels::ViewTable>* viewTables = nullptr;
-    std::vector<std::array<double, 3>> guards;
-    bool complete = false;
   };
   [[nodiscard]] FastPathView fastPathView() const;
 

@@ -1,0 +1,138 @@
+// fogbeam — lamps and tabulated profiles for the GL shaders (lamp_upload.hpp).
+#include "lamp_upload.hpp"
+
+#include <algorithm>
+#include <string>
+#include <type_traits>
+#include <variant>
+
+namespace fogbeam::gl {
+
+namespace {
+
+// std430 mirror of LampGpu in common_photometry.glsl.
+struct LampGpu {
+  float position[4];
+  float axisX[4];
+  float axisY[4];
+  float axisZ[4];
+  float color[4];
+  float params[4];
+  std::int32_t kind[4];
+  std::int32_t table[4];
+};
+static_assert(sizeof(LampGpu) == 128);
+
+std::int32_t typeCode(PhotometricType t) {
+  switch (t) {
+    case PhotometricType::A: return 0;
+    case PhotometricType::B: return 1;
+    case PhotometricType::C: return 2;
+  }
+  return 2;
+}
+
+std::int32_t symmetryCode(PlaneSymmetry s) {
+  switch (s) {
+    case PlaneSymmetry::None: return 0;
+    case PlaneSymmetry::Rotational: return 1;
+    case PlaneSymmetry::Quadrant: return 2;
+    case PlaneSymmetry::Half0To180: return 3;
+    case PlaneSymmetry::Half90To270: return 4;
+    case PlaneSymmetry::MirrorH: return 5;
+  }
+  return 0;
+}
+
+void setVec(float (&dst)[4], const Vec3& v, double w = 0.0) {
+  dst[0] = static_cast<float>(v.x);
+  dst[1] = static_cast<float>(v.y);
+  dst[2] = static_cast<float>(v.z);
+  dst[3] = static_cast<float>(w);
+}
+
+}  // namespace
+
+LampUpload::LampUpload() : lampSsbo_(genBuffer()), profileBuffer_(genBuffer()), profileTex_(genTexture()) {
+  // One texel to start with: a buffer texture over an empty buffer is not valid everywhere.
+  const float zero = 0.0f;
+  glBindBuffer(GL_TEXTURE_BUFFER, profileBuffer_.get());
+  glBufferData(GL_TEXTURE_BUFFER, sizeof zero, &zero, GL_DYNAMIC_DRAW);
+  glBindTexture(GL_TEXTURE_BUFFER, profileTex_.get());
+  glTexBuffer(GL_TEXTURE_BUFFER, GL_R32F, profileBuffer_.get());
+  glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &maxTextureBufferSize_);
+}
+
+Status LampUpload::ensureProfiles(const Scene& scene) {
+  std::vector<std::shared_ptr<const Profile>> wanted;
+  for (const SceneLamp& sl : scene.lamps) {
+    if (!sl.lamp.profile) return Error{"lamp '" + sl.name + "' has no profile"};
+    if (std::holds_alternative<TabulatedProfile>(sl.lamp.profile->model()) &&
+        std::find(wanted.begin(), wanted.end(), sl.lamp.profile) == wanted.end())
+      wanted.push_back(sl.lamp.profile);
+  }
+  if (wanted == uploaded_) return Ok{};
+  std::vector<float> data;
+  std::vector<std::int32_t> offsets;
+  for (const auto& p : wanted) {
+    const auto& t = std::get<TabulatedProfile>(p->model());
+    offsets.push_back(static_cast<std::int32_t>(data.size()));
+    for (double h : t.horizontal) data.push_back(static_cast<float>(h));
+    for (double v : t.vertical) data.push_back(static_cast<float>(v));
+    for (double c : t.candela) data.push_back(static_cast<float>(c));
+  }
+  if (data.empty()) data.push_back(0.0f);
+  if (data.size() > static_cast<std::size_t>(maxTextureBufferSize_))
+    return Error{"lamp profiles need " + std::to_string(data.size()) + " texels, more than GL_MAX_TEXTURE_BUFFER_SIZE " +
+                 std::to_string(maxTextureBufferSize_)};
+  glBindBuffer(GL_TEXTURE_BUFFER, profileBuffer_.get());
+  glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(), GL_STATIC_DRAW);
+  uploaded_ = std::move(wanted);
+  offsets_ = std::move(offsets);
+  return Ok{};
+}
+
+void LampUpload::uploadLamps(const Scene& scene) {
+  std::vector<LampGpu> lamps(std::max<std::size_t>(1, scene.lamps.size()), LampGpu{});
+  const Vec3& eye = scene.camera.position_m;
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const Lamp& l = scene.lamps[i].lamp;
+    LampGpu& g = lamps[i];
+    setVec(g.position, l.position_m - eye);
+    setVec(g.axisX, l.worldFromLamp[0]);
+    setVec(g.axisY, l.worldFromLamp[1]);
+    setVec(g.axisZ, l.worldFromLamp[2]);
+    setVec(g.color, l.color);
+    std::visit(
+        [&](const auto& m) {
+          using M = std::decay_t<decltype(m)>;
+          if constexpr (std::is_same_v<M, IsotropicProfile>) {
+            g.kind[0] = 0;
+            g.params[0] = static_cast<float>(m.intensity_cd);
+          } else if constexpr (std::is_same_v<M, SpotProfile>) {
+            g.kind[0] = 1;
+            g.params[0] = static_cast<float>(m.peak_cd);
+            g.params[1] = static_cast<float>(m.inner);
+            g.params[2] = static_cast<float>(m.outer);
+          } else {
+            g.kind[0] = 2;
+            g.kind[1] = typeCode(m.type);
+            g.kind[2] = symmetryCode(m.symmetry);
+            g.params[0] = 1.0f;
+            // Outside this cone about the axis I = 0 (the GPU airlight cuts rays to it).
+            g.params[3] = static_cast<float>(l.profile->supportHalfAngle());
+            const auto it = std::find(uploaded_.begin(), uploaded_.end(), l.profile);
+            g.table[0] = offsets_[static_cast<std::size_t>(it - uploaded_.begin())];
+            g.table[1] = static_cast<std::int32_t>(m.horizontal.size());
+            g.table[2] = static_cast<std::int32_t>(m.vertical.size());
+          }
+        },
+        l.profile->model());
+  }
+  glBindBuffer(GL_SHADER_STORAGE_BUFFER, lampSsbo_.get());
+  glBufferData(GL_SHADER_STORAGE_BUFFER, static_cast<GLsizeiptr>(lamps.size() * sizeof(LampGpu)), lamps.data(),
+               GL_DYNAMIC_DRAW);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, lampSsbo_.get());
+}
+
+}  // namespace fogbeam::gl
