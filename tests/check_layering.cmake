@@ -3,15 +3,17 @@
 #   util  ←  physics  ←  scene  ←  render  ←  gl          ipc: util only
 #
 # Fails when a source or header of a room includes a fogbeam header of a room it may not use, when
-# util, physics, scene or render include a GL, EGL, socket, CAN or shm header, or when a room's
-# library links a fogbeam library of a room above it, or GL/EGL/sockets.
+# util, physics, scene or render include a GL, EGL, socket, CAN or shm header, when a room's
+# library links a fogbeam library of a room above it, or GL/EGL/sockets, or when a source file
+# has no header of the same name in its room (one header, one source: X.cpp implements X.hpp;
+# X_simd.cpp holds the Highway per-target half of X.hpp).
 cmake_minimum_required(VERSION 3.25)  # IN_LIST in script mode
 # Run by ctest (core_layering) with ROOT (the source tree) and LINKS
 # ("room:lib,lib,…|room:…", each library's LINK_LIBRARIES); MIN_FILES (default 20) guards against
 # a wrong ROOT that would check nothing.
 
 # room → (folders, fogbeam include prefixes it may use)
-set(rooms util physics scene render gl ipc)
+set(rooms util physics scene render gl ipc plugin)
 set(util_dirs core/include/fogbeam/util core/src/util)
 set(util_may util)
 set(physics_dirs core/include/fogbeam/physics core/src/physics)
@@ -24,6 +26,8 @@ set(gl_dirs core/include/fogbeam/gl core/src/gl)
 set(gl_may util physics scene render gl)
 set(ipc_dirs ipc/include/fogbeam/ipc ipc/src ipc/examples)
 set(ipc_may util ipc fogbeam_host.h)
+set(plugin_dirs plugin/include/fogbeam/plugin plugin/lib)
+set(plugin_may util physics scene render gl ipc plugin fogbeam_host.h)
 
 # Headers no room below gl may include (and ipc may: it is the transport room).
 set(os_or_gl
@@ -54,6 +58,38 @@ foreach(room IN LISTS rooms)
           endforeach()
         endif()
       endforeach()
+    endforeach()
+  endforeach()
+endforeach()
+
+# One header, one source: every X.cpp of a room's sources has an X.hpp or X.h in the room.
+foreach(room IN LISTS rooms)
+  set(headers "")
+  foreach(dir IN LISTS ${room}_dirs)
+    file(GLOB hs "${ROOT}/${dir}/*.hpp" "${ROOT}/${dir}/*.h")
+    foreach(h IN LISTS hs)
+      get_filename_component(stem "${h}" NAME_WLE)
+      list(APPEND headers "${stem}")
+    endforeach()
+  endforeach()
+  if(room STREQUAL "ipc")  # the C SDK's headers sit one level up (fogbeam/fogbeam_host.h)
+    file(GLOB hs "${ROOT}/ipc/include/fogbeam/*.h")
+    foreach(h IN LISTS hs)
+      get_filename_component(stem "${h}" NAME_WLE)
+      list(APPEND headers "${stem}")
+    endforeach()
+  endif()
+  foreach(dir IN LISTS ${room}_dirs)
+    if(dir MATCHES "/include/|/examples")
+      continue()
+    endif()
+    file(GLOB sources "${ROOT}/${dir}/*.cpp")
+    foreach(src IN LISTS sources)
+      get_filename_component(stem "${src}" NAME_WLE)
+      string(REGEX REPLACE "_simd$" "" owner "${stem}")
+      if(NOT owner IN_LIST headers)
+        list(APPEND bad "${src}: no ${owner}.hpp in the ${room} room (one header, one source of the same name)")
+      endif()
     endforeach()
   endforeach()
 endforeach()
