@@ -26,7 +26,7 @@ set(gl_dirs core/include/fogbeam/gl core/src/gl)
 set(gl_may util physics scene render gl)
 set(ipc_dirs ipc/include/fogbeam/ipc ipc/src ipc/examples)
 set(ipc_may util ipc fogbeam_host.h)
-set(plugin_dirs plugin/include/fogbeam/plugin plugin/lib)
+set(plugin_dirs plugin/include/fogbeam/plugin plugin/service)
 set(plugin_may util physics scene render gl ipc plugin fogbeam_host.h)
 
 # Headers no room below gl may include (and ipc may: it is the transport room).

@@ -5,6 +5,7 @@
 #include <fogbeam/ipc/protocol.hpp>
 #include <fogbeam/ipc/shm_channel.hpp>
 #include <fogbeam/ipc/status_server.hpp>
+#include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/plugin/frame_pipeline.hpp>
 #include <fogbeam/plugin/scenario.hpp>
 #include <fogbeam/plugin/service.hpp>
@@ -41,11 +42,35 @@ const std::string kSmall = std::string(FOGBEAM_TEST_DATA_DIR) + "/service/small.
 const std::string kTiming = std::string(FOGBEAM_TEST_DATA_DIR) + "/service/timing.toml";
 const std::string kScenario = std::string(FOGBEAM_TEST_DATA_DIR) + "/scenarios/timing.toml";
 
+/// The accurate method's G-moment table for the test configs' fog (Henyey–Greenstein g = 0.85;
+/// both small.toml and timing.toml) takes about a second to build here and ten times that under
+/// ThreadSanitizer, and AirlightEvaluator's cache keeps a table only while an evaluator holds it.
+/// Holding one for the whole binary lets every Service of these tests reuse it, as a running
+/// service reuses its own from frame to frame; what is tested here is the Service, not the table.
+void holdTheTestFogsTables() {
+  static const Result<AirlightEvaluator> held = [] {
+    Medium fog;
+    fog.extinction_per_m = extinctionFromVisibility(80.0);
+    fog.phase = makeHenyeyGreenstein(0.85).value();
+    Lamp lamp;
+    lamp.profile = makeProfile(IsotropicProfile{1.0}).value();
+    return AirlightEvaluator::build(lamp, fog, AirlightMethod::Accurate);
+  }();
+  ASSERT_TRUE(held) << held.error().message;
+}
+
 /// `file` with `settings`, its channels renamed to unique ones (this process, this call), so
 /// that tests neither meet each other's segments nor a running service's.
+/// The ego lamps' view tables at 4° instead of the configs' 1°: building them is most of a
+/// Service's start-up (16× fewer directions here), and these tests check the Service's plumbing
+/// and threads, not the tables' accuracy (tests/render has those). `settings` come after, so a
+/// test may set its own step.
 ServiceConfig configOf(const std::string& file, const std::vector<std::string>& settings = {}) {
+  holdTheTestFogsTables();
   static std::atomic<int> calls{0};
-  auto c = loadServiceConfig(file, settings);
+  std::vector<std::string> layered{"render.view_table_step_deg=4.0"};
+  layered.insert(layered.end(), settings.begin(), settings.end());
+  auto c = loadServiceConfig(file, layered);
   EXPECT_TRUE(c) << (c ? "" : c.error().message);
   if (!c) return {};
   const std::string prefix = "test-svc-" + std::to_string(::getpid()) + "-" + std::to_string(calls++) + "-";

@@ -2,7 +2,7 @@
 // snapshot → every channel rendered (ChannelRenderer, frame_renderer.hpp) → each frame handed,
 // with the frame loop's bookkeeping, to a sink. The service's sink maps frames to the wire and
 // publishes them in shared memory (Service, service.hpp); replay's writes image files and CSV
-// rows (plugin/src/cmd_replay.cpp). Neither renders any other way, so a replay shows what a cab
+// rows (plugin/cli/cmd_replay.cpp). Neither renders any other way, so a replay shows what a cab
 // is shown for the same states, byte for byte.
 //
 // A pipeline owns a copy of the service configuration (its renderers point into it), the GL

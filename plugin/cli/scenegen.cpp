@@ -67,7 +67,7 @@ int addAccessor(tinygltf::Model& model, std::vector<unsigned char>& buf, const v
 tinygltf::Model toGltf(const fogbeam::road::RoadScene& scene) {
   tinygltf::Model model;
   model.asset.version = "2.0";
-  model.asset.generator = "fogbeam_scenegen (plugin/src/road_model.hpp); synthetic, no third-party assets";
+  model.asset.generator = "fogbeam_scenegen (plugin/cli/road_model.hpp); synthetic, no third-party assets";
   std::vector<unsigned char> bin;
 
   for (const auto& m : scene.materials) {
@@ -229,7 +229,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "fogbeam_scenegen: writes the default road scene road.glb (glTF 2.0 binary: a two-lane road with a "
       "left bend, markings, shoulders, reflector posts, trees, a sign, a guard rail, street-lamp poles) from "
-      "the parametric model in plugin/src/road_model.hpp, or checks a shipped file against it."};
+      "the parametric model in plugin/cli/road_model.hpp, or checks a shipped file against it."};
   std::string outDir;
   std::string checkDir;
   auto* outOpt = app.add_option("--out-dir", outDir, "Directory to write road.glb into (created if missing)");

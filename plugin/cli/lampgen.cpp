@@ -78,7 +78,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "fogbeam_lampgen: writes the shipped lamp files (low_beam.ies, high_beam.ies, front_fog.ies, "
       "tail_lamp.ies; IES LM-63-2002, type B, absolute candela) from the parametric models in "
-      "plugin/src/lamp_models.hpp, or checks shipped files against them."};
+      "plugin/cli/lamp_models.hpp, or checks shipped files against them."};
   std::string outDir;
   std::string checkDir;
   auto* outOpt = app.add_option("--out-dir", outDir, "Directory to write the four .ies files into (created if missing)");
