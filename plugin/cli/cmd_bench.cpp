@@ -11,7 +11,7 @@
 // After the sizes, at one size each: the GPU airlight stage of the GL surface pass (--gpu-size;
 // llvmpipe runs it on the CPU where there is no GPU) against the CPU's accurate method on the
 // same frame, and near-field (aperture) lamps (--aperture-size).
-#include "commands.hpp"
+#include "cmd_bench.hpp"
 
 #include <fogbeam/gl/surface_pass.hpp>
 
@@ -51,28 +51,14 @@
 
 namespace fogbeam::cli {
 
+// BenchOptions::scene's default (cmd_bench.hpp): defined here, the one source that gets the path
+// from plugin/CMakeLists.txt.
+const char* const kBenchDefaultScene = FOGBEAM_BENCH_SCENE;
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
 using json = nlohmann::json;
-
-struct BenchOptions {
-  std::string scene = FOGBEAM_BENCH_SCENE;
-  std::vector<std::string> sizes = {"1280x720", "1920x1080"};
-  int frames = 5;
-  bool quick = false;
-  std::string jsonPath;
-  unsigned threads = 0;
-  int samplePixels = 500;
-  unsigned seed = 1;
-  double stageBudgetSeconds = 30.0;  // wall time allowed to each airlight stage per size
-  int maxRayMarchSteps = 1 << 14;
-  double viewTableStepDeg = FastPathOptions{}.view_table_step_deg;
-  // Issue 7's additions: glow and glare at every size; the GPU airlight path and near-field
-  // (aperture) lamps at one size each (llvmpipe runs the GPU path on the CPU: minutes at 720p).
-  std::string gpuSize = "160x90";
-  std::string apertureSize = "320x180";
-};
 
 // Figures of one stage over repeated frames, in milliseconds.
 struct StageStats {
@@ -825,7 +811,10 @@ void printAdditions(const json& a) {
   }
 }
 
-int run(BenchOptions o) {
+}  // namespace
+
+int runBench(const BenchOptions& options) {
+  BenchOptions o = options;  // --quick replaces some of them
   if (o.quick) {
     o.sizes = {"320x180"};
     o.frames = 2;
@@ -914,39 +903,6 @@ int run(BenchOptions o) {
     std::printf("\nwrote %s\n", o.jsonPath.c_str());
   }
   return 0;
-}
-
-}  // namespace
-
-void addBenchCommand(CLI::App& app, int& exitCode) {
-  auto o = std::make_shared<BenchOptions>();
-  auto* sub = app.add_subcommand("bench", "Time every stage of a frame on the paper's headline scene and measure the "
-                                          "error of each airlight method (and a ray marcher) against the reference");
-  sub->add_option("--scene", o->scene, "scene file (default: the shipped config/scenes/bench.toml)")
-      ->check(CLI::ExistingFile);
-  sub->add_option("--sizes", o->sizes, "image sizes WIDTHxHEIGHT, comma-separated (default 1280x720,1920x1080)")
-      ->delimiter(',');
-  sub->add_option("--frames", o->frames, "repeated frames per stage (default 5)")->check(CLI::Range(1, 1000));
-  sub->add_flag("--quick", o->quick, "CI mode: 320x180, 2 frames, view tables at 0.5 deg");
-  sub->add_option("--view-table-step", o->viewTableStepDeg,
-                  "view-table direction spacing, degrees (default 0.2, the renderer's default)")
-      ->check(CLI::Range(0.01, 5.0));
-  sub->add_option("--json", o->jsonPath, "also write every figure to this JSON file");
-  sub->add_option("--gpu-size", o->gpuSize,
-                  "size WIDTHxHEIGHT of the GPU airlight comparison (default 160x90: llvmpipe runs it on the CPU)");
-  sub->add_option("--aperture-size", o->apertureSize,
-                  "size WIDTHxHEIGHT of the near-field (aperture) lamps' comparison (default 320x180)");
-  sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
-  sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
-      ->check(CLI::Range(10, 1000000));
-  sub->add_option("--stage-budget", o->stageBudgetSeconds,
-                  "seconds allowed to each airlight stage per size: fewer frames (at least 1) when they do not fit "
-                  "(default 30; --quick: 3)")
-      ->check(CLI::Range(0.0, 3600.0));
-  sub->add_option("--max-raymarch-steps", o->maxRayMarchSteps,
-                  "largest ray-marcher step count tried (powers of two from 16; default 16384)")
-      ->check(CLI::Range(16, 1 << 20));
-  sub->callback([o, &exitCode] { exitCode = run(*o); });
 }
 
 }  // namespace fogbeam::cli

@@ -2,7 +2,7 @@
 //
 // Describes a lamp intensity file (.ies, .ldt, .csv) for a newcomer and optionally charts it
 // as a false-colour H–V diagram, the view headlamp engineers use (an ECE "screen chart").
-#include "commands.hpp"
+#include "cmd_profile.hpp"
 #include "png_writer.hpp"
 
 #include <fogbeam/physics/photometry_io.hpp>
@@ -23,14 +23,6 @@
 namespace fogbeam::cli {
 
 namespace {
-
-struct ProfileOptions {
-  std::string file;
-  std::string png;
-  int size = 1200;
-  std::vector<double> hRange{45.0};
-  std::vector<double> vRange{-15.0, 10.0};
-};
 
 // ------------------------------------------------------------------------------ report
 
@@ -395,6 +387,8 @@ Result<ChartRange> chartRange(const ProfileOptions& o) {
   return ChartRange{h->first, h->second, v->first, v->second};
 }
 
+}  // namespace
+
 int runProfile(const ProfileOptions& o) {
   const auto range = chartRange(o);
   if (!range) {
@@ -418,36 +412,6 @@ int runProfile(const ProfileOptions& o) {
   }
   std::fflush(stdout);
   return 0;
-}
-
-}  // namespace
-
-void addProfileCommand(CLI::App& app, int& exitCode) {
-  auto opts = std::make_shared<ProfileOptions>();
-  auto* sub = app.add_subcommand(
-      "profile",
-      "Describe a lamp intensity file (.ies IES LM-63, .ldt EULUMDAT, .csv H-V grid) and chart it as PNG.\n"
-      "Prints format, photometric type and symmetry, angle ranges (deg), peak intensity (cd) and where,\n"
-      "total flux (lm), for type B files the intensity at the ECE R112 passing-beam test points, and keywords.");
-  sub->add_option("FILE", opts->file, "Lamp intensity file: .ies, .ldt or .csv")->required()->type_name("FILE");
-  sub->add_option("--png", opts->png,
-                  "Write a false-colour H-V chart to this PNG file: H across (lamp's left on the left), V up, "
-                  "equal scale in degrees; colour = log10(cd) over four decades below the peak (viridis); "
-                  "isocandela lines at 1 and 3 x 10^k cd; grid lines every 5/10 deg")
-      ->type_name("OUT.png");
-  sub->add_option("--size", opts->size, "Chart width in pixels (height follows from the ranges at equal scale)")
-      ->type_name("PX")
-      ->default_val(1200)
-      ->check(CLI::Range(300, 8000));
-  sub->add_option("--h-range", opts->hRange,
-                  "Horizontal chart range in degrees: D for -D..+D, or LO HI (within -90..90; default 45 = -45..+45)")
-      ->type_name("DEG")
-      ->expected(1, 2);
-  sub->add_option("--v-range", opts->vRange,
-                  "Vertical chart range in degrees: D for -D..+D, or LO HI (within -90..90; default -15 10)")
-      ->type_name("DEG")
-      ->expected(1, 2);
-  sub->callback([opts, &exitCode] { exitCode = runProfile(*opts); });
 }
 
 }  // namespace fogbeam::cli

@@ -1,5 +1,5 @@
 // `fogbeam render`: one frame of a scene file to EXR (and PNG).
-#include "commands.hpp"
+#include "cmd_render.hpp"
 #include "exr_writer.hpp"
 #include "png_writer.hpp"
 
@@ -19,19 +19,6 @@
 namespace fogbeam::cli {
 
 namespace {
-
-struct RenderOptions {
-  std::string scene, out, png, method = "accurate", surface = "auto";
-  bool full = false;
-  double exposure = 0.0;
-  int coarseStep = SubsamplingOptions{}.coarse_step;
-  double tolerance = SubsamplingOptions{}.rel_tolerance;
-  std::string movingLamps = "pencil";
-  unsigned threads = 0;
-  // Issue 7's additions; empty: as the scene's [glow], [glare], [render] say.
-  std::string glow, glare, airlightDevice;
-  bool methodGiven = false;
-};
 
 /// The lamp name without the " [k/N]" of an aperture's point lamps (scene.hpp, expandSceneLamp).
 std::string baseName(const std::string& name) {
@@ -88,7 +75,9 @@ void printEffects(const LampEffectsReport& r, bool glow, bool glare) {
 /// "on" / "off" / "" (scene default) → the flag.
 bool switchOf(const std::string& v, bool sceneDefault) { return v.empty() ? sceneDefault : v == "on"; }
 
-int run(const RenderOptions& o) {
+}  // namespace
+
+int runRender(const RenderOptions& o) {
   auto method = parseAirlightMethod(o.method);
   if (!method) {
     std::fprintf(stderr, "fogbeam render: %s\n", method.error().message.c_str());
@@ -244,50 +233,6 @@ int run(const RenderOptions& o) {
   std::printf("  wrote %s%s%s (PNG exposure %+.1f EV)\n", o.out.c_str(), o.png.empty() ? "" : " and ", o.png.c_str(),
               o.exposure);
   return 0;
-}
-
-}  // namespace
-
-void addRenderCommand(CLI::App& app, int& exitCode) {
-  auto o = std::make_shared<RenderOptions>();
-  auto* sub = app.add_subcommand("render", "Render one frame of a scene file (TOML, docs/scene.md) to OpenEXR and PNG");
-  sub->add_option("--scene", o->scene, "scene file (TOML); lengths in m, angles in deg, intensities in cd")
-      ->required()
-      ->check(CLI::ExistingFile);
-  sub->add_option("--out", o->out,
-                  "OpenEXR file, 32-bit float linear layers: R,G,B composite; airlight.R/G/B; surface.R/G/B; "
-                  "overlay.R/G/B (A = airlight + glow + glare + ambient in-scatter); transmittance.Y; distance.Z (m, inf = "
-                  "sky); glow.R/G/B and glare.R/G/B when on; luminance in cd/m2")
-      ->required();
-  sub->add_option("--png", o->png, "also write the composite tone-mapped to 8-bit sRGB PNG");
-  sub->add_option("--method", o->method, "airlight method: seed | accurate | reference (default accurate)")
-      ->each([o](const std::string&) { o->methodGiven = true; });
-  sub->add_option("--glow", o->glow, "glow around lamps (multiple scattering): on | off (default: the scene's [glow])")
-      ->check(CLI::IsMember({"on", "off"}));
-  sub->add_option("--glare", o->glare,
-                  "driver's disability glare (CIE 146 veiling luminance): on | off (default: the scene's [glare])")
-      ->check(CLI::IsMember({"on", "off"}));
-  sub->add_option("--airlight", o->airlightDevice,
-                  "where the airlight is computed: cpu (tables, SIMD, subsampling) | gpu (accurate method in GLSL in the "
-                  "surface pass) (default: the scene's [render] airlight, else cpu)")
-      ->check(CLI::IsMember({"cpu", "gpu"}));
-  sub->add_flag("--full", o->full, "evaluate every pixel (no adaptive subsampling)");
-  sub->add_option("--moving-lamps", o->movingLamps,
-                  "measured and spot lamps fixed in the world (not mount = \"vehicle\"): pencil (default) | per-ray")
-      ->check(CLI::IsMember({"pencil", "per-ray"}));
-  sub->add_option("--exposure", o->exposure,
-                  "PNG exposure in EV: x = L * 2^EV / (1 cd/m2), Reinhard x/(1+x), sRGB (default 0: 1 cd/m2 = mid-grey)");
-  sub->add_option("--coarse-step", o->coarseStep,
-                  "subsampling: initial block size in pixels; 0 (default): 16 where 16 px span at most 0.8 deg, else 8")
-      ->check(CLI::Range(0, 256));
-  sub->add_option("--tolerance", o->tolerance,
-                  "subsampling: relative error allowed between a block's centre and its bilinear prediction (default 0.005)")
-      ->check(CLI::Range(0.0, 1.0));
-  sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
-  sub->add_option("--surface", o->surface,
-                  "surface layer: auto (GL through EGL if available, else CPU), gl (fail without EGL), cpu (planes only)")
-      ->check(CLI::IsMember({"auto", "gl", "cpu"}));
-  sub->callback([o, &exitCode] { exitCode = run(*o); });
 }
 
 }  // namespace fogbeam::cli

@@ -7,7 +7,7 @@
 //
 // Deterministic: simulation time is k / fps, never the wall clock; tables are awaited (no
 // background builds); so the same scenario and configuration give the same frames, byte for byte.
-#include "commands.hpp"
+#include "cmd_replay.hpp"
 #include "exr_writer.hpp"
 #include "png_writer.hpp"
 
@@ -36,26 +36,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
-
-struct ReplayOptions {
-  std::string scenario;
-  std::string out;
-  double fps = 10.0;
-  std::string method;
-  std::string config;
-  std::vector<std::string> set;
-  std::string channel;
-  bool exr = true;
-  bool png = true;
-  bool full = false;
-  double exposure = 0.0;
-  double start_s = 0.0;
-  double end_s = -1.0;
-  int sheetColumns = 6;
-  int sheetWidth = 1536;
-  std::string surface;
-  int width = 0, height = 0;
-};
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -183,7 +163,9 @@ int fail(const std::string& what) {
   return 2;
 }
 
-int run(const ReplayOptions& o) {
+}  // namespace
+
+int runReplay(const ReplayOptions& o) {
   auto scenario = plugin::loadScenario(o.scenario);
   if (!scenario) return fail(scenario.error().message);
   std::vector<std::string> settings = o.set;
@@ -309,36 +291,6 @@ int run(const ReplayOptions& o) {
   }
   json << ", \"airlight\": \"" << toString(cfg->effects.render.airlight) << "\"}\n";
   return 0;
-}
-
-}  // namespace
-
-void addReplayCommand(CLI::App& app, int& exitCode) {
-  auto o = std::make_shared<ReplayOptions>();
-  auto* sub = app.add_subcommand("replay", "Render a scenario (docs/scenario.md) headless into frames, a contact sheet "
-                                           "and a timing summary; deterministic");
-  sub->add_option("--scenario", o->scenario, "scenario file (TOML)")->required()->check(CLI::ExistingFile);
-  sub->add_option("--out", o->out, "output directory (created)")->required();
-  sub->add_option("--fps", o->fps, "frames per second of simulation time (default 10)")->check(CLI::Range(0.01, 1000.0));
-  sub->add_option("--method", o->method, "airlight method: accurate | seed | reference (default: the config's)")
-      ->check(CLI::IsMember({"accurate", "seed", "reference"}));
-  sub->add_option("--config", o->config, "service config for rigs and views (default: built-in)")->check(CLI::ExistingFile);
-  sub->add_option("--set", o->set, "override a service config key: section.key=value, repeatable")->take_all();
-  sub->add_option("--channel", o->channel, "which [[channel]] view to render (default: the first)");
-  sub->add_flag("!--no-exr", o->exr, "do not write EXR frames");
-  sub->add_flag("!--no-png", o->png, "do not write PNG frames (the contact sheet is still written)");
-  sub->add_flag("--full", o->full, "evaluate every pixel (no adaptive subsampling)");
-  sub->add_option("--exposure", o->exposure, "PNG exposure, EV (default 0: 1 cd/m2 = mid-grey)");
-  sub->add_option("--start", o->start_s, "first frame's time, s (default 0)")->check(CLI::Range(0.0, 1e6));
-  sub->add_option("--end", o->end_s, "last frame's time, s (default: the scenario's duration)")->check(CLI::Range(0.0, 1e6));
-  sub->add_option("--sheet-columns", o->sheetColumns, "contact sheet columns (default 6)")->check(CLI::Range(1, 64));
-  sub->add_option("--sheet-width", o->sheetWidth, "contact sheet width, px (default 1536)")->check(CLI::Range(64, 16384));
-  sub->add_option("--width", o->width, "image width, px (default: the channel's; same field of view)")
-      ->check(CLI::Range(16, 16384));
-  sub->add_option("--height", o->height, "image height, px (default: width · 9/16 when --width is given)")
-      ->check(CLI::Range(9, 16384));
-  sub->add_option("--surface", o->surface, "auto | gl | cpu (default: the config's)")->check(CLI::IsMember({"auto", "gl", "cpu"}));
-  sub->callback([o, &exitCode] { exitCode = run(*o); });
 }
 
 }  // namespace fogbeam::cli

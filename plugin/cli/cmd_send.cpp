@@ -4,7 +4,7 @@
 // candump -L log) through a CAN mapping (docs/can.md). For demos and end-to-end tests: --log
 // writes every ego message sent (sequence, time, pose, lights) so a test can check the frames'
 // metadata against it; --lock-step sends a frame request after each state.
-#include "commands.hpp"
+#include "cmd_send.hpp"
 
 #include <fogbeam/ipc/can_config.hpp>
 #include <fogbeam/ipc/can_encode.hpp>
@@ -43,22 +43,6 @@ using Clock = std::chrono::steady_clock;
 
 std::atomic<bool> gStop{false};
 extern "C" void onSendSignal(int) { gStop.store(true); }
-
-struct SendOptions {
-  std::string scenario;
-  bool keyboard = false;
-  std::string to = "127.0.0.1:47800";
-  double rate_hz = 60.0;
-  double speed = 1.0;
-  double duration_s = 0.0;
-  bool loop = false;
-  bool lockStep = false;
-  std::string log;
-  std::string canConfig;
-  std::string canCannelloni;  ///< host:port
-  std::string canCandump;     ///< output log path
-  std::string canInterface = "can0";
-};
 
 struct Target {
   int fd = -1;
@@ -122,7 +106,9 @@ int fail(const std::string& what) {
   return 2;
 }
 
-int run(const SendOptions& o) {
+}  // namespace
+
+int runSend(const SendOptions& o) {
   if (o.scenario.empty() == !o.keyboard) return fail("give --scenario FILE or --keyboard");
   std::optional<plugin::Scenario> scenario;
   if (!o.scenario.empty()) {
@@ -292,29 +278,6 @@ int run(const SendOptions& o) {
               static_cast<unsigned long long>(datagrams), o.to.c_str(), static_cast<unsigned long long>(sendErrors),
               canEncoder ? (", " + std::to_string(canFrames) + " CAN frames").c_str() : "");
   return sendErrors == 0 ? 0 : 1;
-}
-
-}  // namespace
-
-void addSendCommand(CLI::App& app, int& exitCode) {
-  auto o = std::make_shared<SendOptions>();
-  auto* sub = app.add_subcommand("send", "Host stand-in: play a scenario (or keyboard driving) into a running "
-                                         "`fogbeam serve` over UDP, optionally CAN");
-  sub->add_option("--scenario", o->scenario, "scenario file to play in real time")->check(CLI::ExistingFile);
-  sub->add_flag("--keyboard", o->keyboard, "drive with the keyboard instead (w/s/a/d, l/h/f/r lights, +/- fog, q)");
-  sub->add_option("--to", o->to, "the service's UDP input, HOST:PORT (default 127.0.0.1:47800)");
-  sub->add_option("--rate", o->rate_hz, "states per second (default 60)")->check(CLI::Range(0.1, 2000.0));
-  sub->add_option("--speed", o->speed, "scenario time per wall-clock second (default 1)")->check(CLI::Range(0.01, 100.0));
-  sub->add_option("--duration", o->duration_s, "stop after this many wall-clock seconds")->check(CLI::Range(0.0, 1e7));
-  sub->add_flag("--loop", o->loop, "start the scenario again at its end");
-  sub->add_flag("--lock-step", o->lockStep, "send a frame request (frame = state number, from 1) after each state");
-  sub->add_option("--log", o->log, "write what was sent (ego sequence, time, pose, lights) to this CSV");
-  sub->add_option("--can-config", o->canConfig, "CAN mapping file (docs/can.md): also send lamps and speed on CAN")
-      ->check(CLI::ExistingFile);
-  sub->add_option("--can-cannelloni", o->canCannelloni, "send the CAN frames as cannelloni to HOST:PORT");
-  sub->add_option("--can-candump", o->canCandump, "write the CAN frames as a candump -L log");
-  sub->add_option("--can-interface", o->canInterface, "interface name written in the candump log (default can0)");
-  sub->callback([o, &exitCode] { exitCode = run(*o); });
 }
 
 }  // namespace fogbeam::cli

@@ -5,10 +5,11 @@
 // from a scenario (docs/scenario.md) that plays until a host sends its first message; every frame
 // takes one state snapshot and renders each channel into its shared-memory segment (docs/shm.md).
 //
-// This file is the command line: options, the configuration's layers, --channel-prefix,
-// --print-config, the ready and summary lines, and SIGINT/SIGTERM, whose handler asks the
-// service to stop (the loop ends, threads are joined and segments unlinked).
-#include "commands.hpp"
+// This file is the command line's side of it (the options themselves are registered in
+// main.cpp): the configuration's layers, --channel-prefix, --print-config, the ready and summary
+// lines, and SIGINT/SIGTERM, whose handler asks the service to stop (the loop ends, threads are
+// joined and segments unlinked).
+#include "cmd_serve.hpp"
 
 #include <fogbeam/ipc/shm_channel.hpp>
 
@@ -38,31 +39,14 @@ extern "C" void onSignal(int) {
   if (plugin::Service* s = gService.load()) s->requestStop();
 }
 
-struct ServeOptions {
-  std::string config;
-  std::vector<std::string> set;
-  bool printConfig = false;
-  std::string scenario;
-  bool noScenario = false;
-  std::string channelPrefix;
-  double duration_s = 0.0;
-  std::uint64_t frames = 0;
-  // Shorthands for --set (applied after it): empty / negative = not given.
-  bool lockStep = false;
-  double rate_hz = 0.0;
-  int udpPort = -1;
-  int statusPort = -1;
-  std::string surface;
-  double viewTableStepDeg = 0.0;
-  unsigned threads = 0;
-};
-
 int fail(const std::string& what) {
   std::fprintf(stderr, "fogbeam serve: %s\n", what.c_str());
   return 2;
 }
 
-int run(const ServeOptions& o) {
+}  // namespace
+
+int runServe(const ServeOptions& o) {
   std::vector<std::string> settings = o.set;
   if (!o.scenario.empty()) settings.push_back("world.scenario=\"" + o.scenario + "\"");
   if (o.noScenario) settings.push_back("world.scenario=\"\"");
@@ -112,35 +96,6 @@ int run(const ServeOptions& o) {
               static_cast<unsigned long long>(st.datagrams), static_cast<unsigned long long>(st.applied),
               static_cast<unsigned long long>(st.droppedTotal()));
   return exitCode;
-}
-
-}  // namespace
-
-void addServeCommand(CLI::App& app, int& exitCode) {
-  auto o = std::make_shared<ServeOptions>();
-  auto* sub = app.add_subcommand(
-      "serve", "Run the cab service: UDP/CAN/scenario in, frames to shared-memory channels (docs/service.md)");
-  sub->add_option("--config", o->config, "service config file, merged over the built-in default")
-      ->check(CLI::ExistingFile);
-  sub->add_option("--set", o->set, "override one key: section.key=value (TOML value), repeatable")
-      ->take_all();
-  sub->add_flag("--print-config", o->printConfig, "print the effective configuration (TOML) and exit");
-  sub->add_option("--scenario", o->scenario, "play this scenario until a host sends (overrides world.scenario)")
-      ->check(CLI::ExistingFile);
-  sub->add_flag("--no-scenario", o->noScenario, "play no scenario: wait for a host");
-  sub->add_option("--channel-prefix", o->channelPrefix, "prefix every channel name (several services on one machine)");
-  sub->add_option("--duration", o->duration_s, "stop after this many seconds (default: until SIGINT/SIGTERM)")
-      ->check(CLI::Range(0.0, 1e7));
-  sub->add_option("--frames", o->frames, "stop after this many frames (default: no limit)");
-  sub->add_flag("--lock-step", o->lockStep, "= --set timing.mode=\"lock-step\"");
-  sub->add_option("--rate", o->rate_hz, "= --set timing.rate_hz=…")->check(CLI::Range(0.1, 1000.0));
-  sub->add_option("--udp-port", o->udpPort, "= --set input.udp.port=… (0 = any free port)")->check(CLI::Range(0, 65535));
-  sub->add_option("--status-port", o->statusPort, "= --set status.udp_port=… (0 = off)")->check(CLI::Range(0, 65535));
-  sub->add_option("--surface", o->surface, "= --set render.surface=…")->check(CLI::IsMember({"auto", "gl", "cpu"}));
-  sub->add_option("--view-table-step", o->viewTableStepDeg, "= --set render.view_table_step_deg=…")
-      ->check(CLI::Range(0.05, 5.0));
-  sub->add_option("--threads", o->threads, "= --set render.threads=…");
-  sub->callback([o, &exitCode] { exitCode = run(*o); });
 }
 
 }  // namespace fogbeam::cli

@@ -1,5 +1,5 @@
 // `fogbeam validate`: the three airlight methods against a reference, as a table.
-#include "commands.hpp"
+#include "cmd_validate.hpp"
 #include "lamp_models.hpp"
 
 #include <fogbeam/gl/surface_pass.hpp>
@@ -25,16 +25,6 @@
 namespace fogbeam::cli {
 
 namespace {
-
-struct ValidateOptions {
-  std::string vectors;
-  std::string out;
-  std::vector<std::string> methods{"seed", "accurate", "reference"};
-  std::string headlamp;
-  int rays = 24;
-  int segments = AirlightOptions{}.accurate_segments;
-  bool additions = true;
-};
 
 using Clock = std::chrono::steady_clock;
 double usSince(Clock::time_point t0) { return std::chrono::duration<double, std::micro>(Clock::now() - t0).count(); }
@@ -186,7 +176,9 @@ std::string human(std::size_t bytes) {
   return b;
 }
 
-int run(const ValidateOptions& o) {
+}  // namespace
+
+int runValidate(const ValidateOptions& o) {
   std::shared_ptr<const Profile> additionsHeadlamp = makeProfile(lamps::makeLowBeam()).value();
   std::vector<AirlightMethod> methods;
   for (const auto& m : o.methods) {
@@ -278,35 +270,6 @@ int run(const ValidateOptions& o) {
     std::printf("  wrote %zu result rows to %s\n", res->rows.size(), o.out.c_str());
   }
   return exitCode;
-}
-
-}  // namespace
-
-void addValidateCommand(CLI::App& app, int& exitCode) {
-  auto opts = std::make_shared<ValidateOptions>();
-  auto* sub = app.add_subcommand(
-      "validate",
-      "Evaluate the airlight methods (seed, accurate, reference) on test vectors or a built-in sweep and print "
-      "median / 95th percentile / max relative error and cost per evaluation. Exits 1 when the accurate method "
-      "misses its bounds (p95 <= 0.5 %, max <= 2 %), 2 on bad input.");
-  sub->add_option("--vectors", opts->vectors,
-                  "CSV of rays, lamps and fogs with expected airlight (cd/m2), columns as "
-                  "tests/data/airlight_vectors.csv; lengths in m, angles in degrees, extinction in 1/m. "
-                  "Without it, a built-in sweep is evaluated against the reference method.")
-      ->check(CLI::ExistingFile);
-  sub->add_option("--out", opts->out, "write one row per case and method: method,row,value,expected,rel_error "
-                                      "(value and expected in cd/m2; rel_error is |L| for zero cases)");
-  sub->add_option("--methods", opts->methods, "methods to run (default: seed accurate reference)")->delimiter(',');
-  sub->add_option("--headlamp", opts->headlamp,
-                  "sweep only: headlamp profile file (.ies/.ldt/.csv) instead of the built-in low beam");
-  sub->add_flag("!--no-additions", opts->additions,
-                "skip the checks of issue 7's additions (glow energy, glare, near-field lamps, GPU airlight)");
-  sub->add_option("--rays", opts->rays, "sweep only: rays per situation (default 24; 7 fogs x 2 profiles x 4 situations)")
-      ->check(CLI::Range(1, 10000));
-  sub->add_option("--segments", opts->segments,
-                  "accurate method: quadratic pieces per ray for tabulated profiles (default 48)")
-      ->check(CLI::Range(1, 4096));
-  sub->callback([opts, &exitCode] { exitCode = run(*opts); });
 }
 
 }  // namespace fogbeam::cli

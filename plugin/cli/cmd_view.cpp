@@ -13,7 +13,7 @@
 //
 // GL 3.3 core through libepoxy (as core/src/gl does), windows and input through GLFW (GLX under
 // X11 and Xvfb), text through stb_easy_font (quads, no texture).
-#include "commands.hpp"
+#include "cmd_view.hpp"
 #include "png_writer.hpp"
 
 #include <fogbeam/ipc/protocol.hpp>
@@ -60,17 +60,6 @@ const char* layerName(Layer l) {
   }
   return "?";
 }
-
-struct ViewOptions {
-  std::vector<std::string> channels{"main"};
-  std::string layer = "composite";
-  double exposure = 0.0;
-  bool noStats = false;
-  int width = 0, height = 0;
-  std::string screenshot;
-  std::uint64_t afterFrames = 1;
-  double timeout_s = 0.0;
-};
 
 /// How the shader shows a texel (uniform `mode` of kFrameFragment).
 enum class Decode : int { AsIs = 0, ToneMap = 1, AlphaGrey = 2 };
@@ -574,9 +563,15 @@ Status screenshot(int fbW, int fbH, const std::string& path) {
   return png::writePng(img, path);
 }
 
+}  // namespace
+
 // ---- the loop -------------------------------------------------------------------------------
 
-int run(const ViewOptions& o) {
+int runView(const ViewOptions& o) {
+  if ((o.width > 0) != (o.height > 0)) {
+    std::fprintf(stderr, "fogbeam view: give both --width and --height, or neither\n");
+    return 2;
+  }
   std::vector<Channel> channels;
   for (const std::string& name : o.channels) {
     if (name.empty()) continue;
@@ -707,40 +702,6 @@ int run(const ViewOptions& o) {
   for (Channel& c : channels)
     if (c.texture != 0) glDeleteTextures(1, &c.texture);
   return exitCode;
-}
-
-}  // namespace
-
-void addViewCommand(CLI::App& app, int& exitCode) {
-  auto o = std::make_shared<ViewOptions>();
-  auto* sub = app.add_subcommand(
-      "view", "Show shared-memory channels in a window (keys: 1/2/3 composite/airlight/transmittance, +/- exposure by "
-              "0.5 EV, S stats, Tab focus one channel, Esc/Q quit)");
-  sub->add_option("--channel", o->channels, "channel name(s), repeatable or comma-separated: tiled side by side (default main)")
-      ->delimiter(',');
-  sub->add_option("--layer", o->layer, "initial layer: composite | airlight | transmittance (default composite)")
-      ->check(CLI::IsMember({"composite", "airlight", "transmittance"}));
-  sub->add_option("--exposure", o->exposure, "initial exposure of linear formats, EV: display = sRGB(Reinhard(2^EV * L)) "
-                                              "with L in cd/m2 (default 0)");
-  sub->add_flag("--no-stats", o->noStats, "start without the stats overlay");
-  sub->add_option("--width", o->width, "window width, pixels (default: the frames' native widths, tiled)")
-      ->check(CLI::Range(16, 16384));
-  sub->add_option("--height", o->height, "window height, pixels (default: the tallest frame's height)")
-      ->check(CLI::Range(16, 16384));
-  sub->add_option("--screenshot", o->screenshot, "save the window as this PNG after --after-frames new frames, then exit 0");
-  sub->add_option("--after-frames", o->afterFrames, "new frames every channel shows before the screenshot (default 1)")
-      ->check(CLI::Range(std::uint64_t{1}, std::uint64_t{1000000}));
-  sub->add_option("--timeout", o->timeout_s, "exit 1 when a channel shows no new frame for this many seconds "
-                                             "(default 0: wait forever)")
-      ->check(CLI::Range(0.0, 1e7));
-  sub->callback([o, &exitCode] {
-    if ((o->width > 0) != (o->height > 0)) {
-      std::fprintf(stderr, "fogbeam view: give both --width and --height, or neither\n");
-      exitCode = 2;
-      return;
-    }
-    exitCode = run(*o);
-  });
 }
 
 }  // namespace fogbeam::cli
