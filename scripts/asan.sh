@@ -45,6 +45,10 @@ export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=1:strict_init
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0"
 export FOGBEAM_TEST_MIN_FPS=10
+# The accuracy tests run a quarter of their sampling (tests/test_scale.hpp): every case kind,
+# method and branch still runs, with fewer rays, grid points, table nodes and frames; their
+# statistics are the plain build's business, where they run in full (docs/reliability.md).
+export FOGBEAM_TEST_SCALE=0.25
 ctest --preset asan -j "$(nproc)" "${only[@]}" -LE 'timing|soak'
 echo "asan: suite (less labels timing, soak) clean under ASan + UBSan (+ LSan but for the GL tests); build $((built - start)) s," \
      "tests $(($(date +%s) - built)) s"

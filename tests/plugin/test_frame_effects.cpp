@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "test_scale.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -331,16 +333,23 @@ TEST(RigApertures, EgoLampPointsSwitchByTheirLampsBit) {
   // low beam alone. Airlight adds up lamp by lamp, so with every pixel evaluated:
   //  * low beam bit: the same frame as the low beam's rig alone (its 9 points on, the high beam off);
   //  * low + high = both + none: the high beam bit lights exactly the rest.
+  // Each point is a vehicle lamp with view tables of its own, whose insets around the lamp's
+  // image keep their size whatever the step: 19 lamps' tables in the two renderers, most of the
+  // time (52 s under ASan). FOGBEAM_TEST_SCALE thins the face, points per axis by √scale but
+  // at least 2 (2 × 2 at 0.25, 9 lamps' tables): still several points, each switching with
+  // the lamp's bit, and the sums add up exactly whatever their number.
+  const int perAxis = static_cast<int>(test::scaled(3, 2, std::sqrt(test::scale())));
   const std::string lamps = "../../../config/lamps/";
   const std::string low = "[[ego.lamp]]\nrole = \"low-beam\"\nname = \"low\"\nposition_m = [2.2, 0.7, 0.65]\nprofile = \"" +
-                          lamps + "low_beam.ies\"\naperture = \"rectangle\"\naperture_size_m = [0.2, 0.1]\n";
+                          lamps + "low_beam.ies\"\naperture = \"rectangle\"\naperture_size_m = [0.2, 0.1]\n" +
+                          "aperture_samples = " + std::to_string(perAxis) + "\n";
   const std::string high = "[[ego.lamp]]\nrole = \"high-beam\"\nname = \"high\"\nposition_m = [2.2, 0.55, 0.65]\n"
                            "profile = \"" + lamps + "high_beam.ies\"\n";
   // View tables at 4° (the config's 1° costs 16× more to build): the sums below add up exactly
   // whatever the step, and the tables' accuracy is tests/render's subject.
   const ServiceConfig both = configWith({"render.subsampling=false", "render.view_table_step_deg=4.0"}, "[ego]\n" + low + high);
   const ServiceConfig lowOnly = configWith({"render.subsampling=false", "render.view_table_step_deg=4.0"}, "[ego]\n" + low);
-  ASSERT_EQ(expandRig(both.ego).size(), 10u);
+  ASSERT_EQ(expandRig(both.ego).size(), static_cast<std::size_t>(perAxis * perAxis + 1));
   const Scene world = worldOf(both);
   auto r = ChannelRenderer::create(both, 0, world, nullptr);
   auto r1 = ChannelRenderer::create(lowOnly, 0, world, nullptr);

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include "test_scale.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -52,6 +54,23 @@ Scene nightRoad(int width, int height) {
 FastPathOptions testFastPath() {
   FastPathOptions f;
   f.view_table_step_deg = 0.25;
+  return f;
+}
+
+// The same for the tests whose assertions do not depend on the tables' nodes: images against
+// images made with the same tables (subsampled against full, switched lamps against their sum,
+// tiles against the whole), or one camera's window of another's whose nodes coincide at any
+// step (ViewTable::build: both windows start at the same corner). Their cost is the vehicle
+// lamps' view tables, one evaluation per direction and distance node, so FOGBEAM_TEST_SCALE
+// scales the nodes: the step grows by 1/√scale (the frustum table's directions × scale) and
+// the distance nodes × scale (0.5° and 12 at 0.25). The insets around each lamp's image keep
+// the directions the renderer gives them, so only their distances shrink: under ASan at 0.25
+// the tables cost ~0.3 of their full-size time. The tables' accuracy is
+// ImagesOfEachMethodAgainstTheReference's subject, which keeps testFastPath().
+FastPathOptions scaledFastPath() {
+  FastPathOptions f = testFastPath();
+  f.view_table_step_deg /= std::sqrt(test::scale());
+  f.view_table_distances = static_cast<int>(test::scaled(static_cast<std::size_t>(f.view_table_distances), 8));
   return f;
 }
 
@@ -104,7 +123,7 @@ TEST(AirlightImage, SubsampledMatchesFullWithinOnePercentP95) {
   const Scene scene = nightRoad(256, 144);
   SurfaceBuffers surf;
   renderSurfacesCpu(scene, surf);
-  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, testFastPath());
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, scaledFastPath());
   ASSERT_TRUE(ev.has_value());
   AirlightImage full, sub;
   ev->evaluate(scene, surf, SubsamplingOptions{.full = true}, full);
@@ -228,7 +247,7 @@ TEST(AirlightImage, OffAxisImageIsTheCropOfTheCentredImage) {
       else ASSERT_NEAR(b, a, 1e-5f * a) << i << "," << j;
     }
 
-  auto evBig = AirlightImageEvaluator::build(big, AirlightMethod::Accurate, {}, 0, testFastPath());
+  auto evBig = AirlightImageEvaluator::build(big, AirlightMethod::Accurate, {}, 0, scaledFastPath());
   ASSERT_TRUE(evBig.has_value());
   EXPECT_NE(evBig->describe().find("2 vehicle lamp(s) by view table"), std::string::npos) << evBig->describe();
   AirlightImage bigFull;
@@ -237,7 +256,7 @@ TEST(AirlightImage, OffAxisImageIsTheCropOfTheCentredImage) {
   // A fresh evaluator whose first camera is the centred one with the same size and fov_x: its
   // view tables must be rebuilt when the principal point moves (ViewKey).
   Scene centred = nightRoad(kW, kH);
-  auto ev = AirlightImageEvaluator::build(centred, AirlightMethod::Accurate, {}, 0, testFastPath());
+  auto ev = AirlightImageEvaluator::build(centred, AirlightMethod::Accurate, {}, 0, scaledFastPath());
   ASSERT_TRUE(ev.has_value());
   SurfaceBuffers surfCentred;
   renderSurfacesCpu(centred, surfCentred);
@@ -277,7 +296,7 @@ TEST(AirlightImage, SplittingEveryBlockGivesTheFullImageAtAnySize) {
     else scene.lamps.erase(scene.lamps.begin(), scene.lamps.begin() + 3);
     SurfaceBuffers surf;
     renderSurfacesCpu(scene, surf);
-    auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, testFastPath());
+    auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, scaledFastPath());
     ASSERT_TRUE(ev.has_value());
     AirlightImage full, sub;
     ev->evaluate(scene, surf, SubsamplingOptions{.full = true}, full);
@@ -304,7 +323,7 @@ TEST(AirlightImage, MergedVehicleTablesFollowLampSwitching) {
   scene.lamps.resize(2);  // the two ego low beams only
   SurfaceBuffers surf;
   renderSurfacesCpu(scene, surf);
-  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, testFastPath());
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, scaledFastPath());
   ASSERT_TRUE(ev.has_value());
   const SubsamplingOptions full{.full = true};
   AirlightImage both, left, right, again;

@@ -17,13 +17,20 @@ import subprocess
 import sys
 import tempfile
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from fogbeam_scale import scaled  # noqa: E402
+
 FOGBEAM, CONFIG, SCENARIO = sys.argv[1:4]
 EXTRA = ["eye_illuminance_lx", "veiling_luminance_cd_m2", "glow_ms", "glare_ms"]
 KT = math.log(20.0) / 80.0  # the scenario's fog: visibility 80 m
+# t = 0 … 3 s, FRAMES evenly: 4 (1 fps) at full size. FOGBEAM_TEST_SCALE renders fewer, at least
+# 2 (0 and 3 s, the car at 146 m and 26 m): the eye illuminance must still rise from frame to frame.
+FRAMES = scaled(4, 2)
+FPS = (FRAMES - 1) / 3.0
 
 
 def replay(out, *settings):
-    args = [FOGBEAM, "replay", "--scenario", SCENARIO, "--config", CONFIG, "--out", out, "--fps", "1", "--end", "3",
+    args = [FOGBEAM, "replay", "--scenario", SCENARIO, "--config", CONFIG, "--out", out, "--fps", str(FPS), "--end", "3",
             "--no-exr", "--no-png"]
     for s in settings:
         args += ["--set", s]
@@ -42,10 +49,10 @@ on, off = os.path.join(tmp, "on"), os.path.join(tmp, "off")
 summary = replay(on, "glow.enabled=true", "glare.enabled=true")
 assert "glow on, glare on" in summary and "glow / glare" in summary, summary
 frames = rows(os.path.join(on, "frames.csv"))
-assert len(frames) == 4, frames
+assert len(frames) == FRAMES, frames
 assert all(k in frames[0] for k in EXTRA), list(frames[0])
 lamps = [r for r in rows(os.path.join(on, "effects_lamps.csv")) if r["lamp"] == "left low beam"]
-assert [int(r["frame"]) for r in lamps] == [0, 1, 2, 3], lamps
+assert [int(r["frame"]) for r in lamps] == list(range(FRAMES)), lamps
 previous = 0.0
 for r, f in zip(lamps, frames):
     e, i, d = float(r["eye_illuminance_lx"]), float(r["intensity_cd"]), float(r["distance_m"])
@@ -60,7 +67,7 @@ assert timing["eye_illuminance_lx_max"] > 0 and timing["glare_ms_median"] > 0, t
 
 replay(off)
 plain = rows(os.path.join(off, "frames.csv"))
-assert len(plain) == 4 and not any(k in plain[0] for k in EXTRA), list(plain[0])
+assert len(plain) == FRAMES and not any(k in plain[0] for k in EXTRA), list(plain[0])
 assert not os.path.exists(os.path.join(off, "effects_lamps.csv"))
 print("replay with glow and glare: car's eye illuminance per frame " +
       ", ".join(f"{float(r['eye_illuminance_lx']):.3g} lx at {float(r['distance_m']):.0f} m" for r in lamps) +
