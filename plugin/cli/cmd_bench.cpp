@@ -39,6 +39,9 @@
 #include <thread>
 #include <vector>
 
+#ifndef FOGBEAM_BENCH_TRAFFIC_SCENE
+#define FOGBEAM_BENCH_TRAFFIC_SCENE "config/scenes/traffic.toml"
+#endif
 #ifndef FOGBEAM_BENCH_SCENE
 #define FOGBEAM_BENCH_SCENE "config/scenes/bench.toml"
 #endif
@@ -54,6 +57,7 @@ namespace fogbeam::cli {
 // BenchOptions::scene's default (cmd_bench.hpp): defined here, the one source that gets the path
 // from plugin/CMakeLists.txt.
 const char* const kBenchDefaultScene = FOGBEAM_BENCH_SCENE;
+const char* const kBenchTrafficScene = FOGBEAM_BENCH_TRAFFIC_SCENE;
 
 namespace {
 
@@ -766,11 +770,157 @@ json nearFieldStage(const Scene& base, const BenchOptions& o, unsigned threads) 
           {"sum_ratio", sp > 0.0 ? sumOf(lf) / sp : 0.0}};
 }
 
+// Issue 15: lamps that move relative to the eye. The shipped traffic scene (kBenchTrafficScene)
+// at o.trafficSize: a drive of 1 + o.frames frames at 30 Hz in which both oncoming cars come
+// towards the ego car at 15 m/s (their four measured low beams take a new pose every frame),
+// for each moving-lamp path (per-frame lamp maps, per-pixel pencil), and the same frames with
+// the cars removed (ego low beams and street lamps: the static frame). The first frame of each
+// builds the ego lamps' view tables and is not timed. Then the last frame of each path against
+// the per-ray accurate method (every lamp per ray, no tables: the definition) on sample pixels
+// above 1 % of the frame's 99.5th percentile of luminance.
+struct TrafficRun {
+  StageStats airlight;
+  std::size_t evaluated = 0, mapNodes = 0;
+  double mapMs = 0.0;
+  AirlightImage last;
+};
+
+Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, const std::vector<std::size_t>& cars,
+                                 MovingLampPath path, unsigned threads, const BenchOptions& o) {
+  FastPathOptions fast;
+  fast.view_table_step_deg = o.viewTableStepDeg;
+  fast.moving_lamps = path;
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, fast);
+  if (!ev) return ev.error();
+  TrafficRun run;
+  AirlightImage img;
+  ev->evaluate(scene, surface, SubsamplingOptions{}, img);  // view tables of the ego lamps
+  constexpr double kStepM = 15.0 / 30.0;                     // 15 m/s at 30 Hz
+  std::vector<double> mapMs;
+  for (int f = 0; f < o.frames; ++f) {
+    for (std::size_t i : cars) {
+      Lamp& l = scene.lamps[i].lamp;
+      l.position_m += kStepM * (l.worldFromLamp * Vec3(1.0, 0.0, 0.0));  // along the lamp's own axis
+    }
+    if (Status st = ev->setLampPoses(scene); !st) return st.error();
+    const auto t0 = Clock::now();
+    ev->evaluate(scene, surface, SubsamplingOptions{}, run.last);
+    run.airlight.ms.push_back(msSince(t0));
+    run.evaluated = run.last.evaluated;
+    run.mapNodes = run.last.map_nodes;
+    mapMs.push_back(1e3 * run.last.map_seconds);
+  }
+  run.mapMs = percentile(mapMs, 0.5);
+  return run;
+}
+
+json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
+  json out;
+  int w = 0, h = 0;
+  if (!parseSize(o.trafficSize, w, h)) return out;
+  auto loaded = loadScene(o.trafficScene);
+  if (!loaded) {
+    out["note"] = loaded.error().message;
+    return out;
+  }
+  const Scene scene = resized(*loaded, w, h);
+  std::vector<std::size_t> cars;  // measured lamps not fixed to the camera: the traffic
+  Scene still = scene;
+  still.lamps.clear();
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const SceneLamp& l = scene.lamps[i];
+    if (l.mount != LampMount::Vehicle && !std::holds_alternative<IsotropicProfile>(l.lamp.profile->model()))
+      cars.push_back(i);
+    else
+      still.lamps.push_back(l);
+  }
+  SurfaceBuffers surface;
+  std::string surfaceNote = "CPU planes";
+  if (gl && gl->render(scene, surface)) surfaceNote = "GL";
+  else renderSurfacesCpu(scene, surface);
+  out = {{"scene", o.trafficScene}, {"width", w}, {"height", h}, {"surface", surfaceNote},
+         {"moving_lamps", cars.size()}, {"lamps", scene.lamps.size()}};
+  auto base = trafficFrames(still, surface, {}, MovingLampPath::Map, threads, o);
+  if (!base) {
+    out["note"] = base.error().message;
+    return out;
+  }
+  out["static"] = base->airlight.toJson();
+  ThreadPool pool(threads);
+  auto reference = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, FastPathOptions{});
+  for (MovingLampPath path : {MovingLampPath::Map, MovingLampPath::Pencil}) {
+    auto run = trafficFrames(scene, surface, cars, path, threads, o);
+    if (!run || !reference) {
+      out["note"] = !run ? run.error().message : reference.error().message;
+      return out;
+    }
+    json r = run->airlight.toJson();
+    r["evaluated_pixels"] = run->evaluated;
+    r["map_nodes"] = run->mapNodes;
+    r["map_ms"] = run->mapMs;
+    r["vs_static"] = base->airlight.median() > 0.0 ? run->airlight.median() / base->airlight.median() : 0.0;
+    // The last frame's poses, per ray, on sample pixels above 1 % of its 99.5th percentile.
+    Scene moved = scene;
+    for (std::size_t i : cars)
+      moved.lamps[i].lamp.position_m += (0.5 * o.frames) * (moved.lamps[i].lamp.worldFromLamp * Vec3(1.0, 0.0, 0.0));
+    if (Status st = reference->setLampPoses(moved); !st) {
+      out["note"] = st.error().message;
+      return out;
+    }
+    const std::vector<double> lum = luminances(run->last.rgb);
+    const double threshold = 0.01 * percentile(lum, 0.995);
+    std::vector<SamplePixel> px;
+    std::mt19937 rng(o.seed);
+    std::vector<std::size_t> bright;
+    for (std::size_t k = 0; k < lum.size(); ++k)
+      if (lum[k] > threshold) bright.push_back(k);
+    std::shuffle(bright.begin(), bright.end(), rng);
+    bright.resize(std::min<std::size_t>(bright.size(), static_cast<std::size_t>(o.samplePixels)));
+    for (std::size_t k : bright)
+      px.push_back({static_cast<int>(k % static_cast<std::size_t>(w)), static_cast<int>(k / static_cast<std::size_t>(w))});
+    std::vector<double> want, got;
+    evaluateSample(pool, moved.camera, surface, px,
+                   [&](const Ray& ray, float rgb[3]) { reference->evaluateRay(ray, rgb); }, want);
+    for (const SamplePixel& p : px)
+      got.push_back(lum[static_cast<std::size_t>(p.j) * static_cast<std::size_t>(w) + static_cast<std::size_t>(p.i)]);
+    r["vs_per_ray"] = relativeErrors(got, want).toJson();
+    r["threshold_cd_m2"] = threshold;
+    out[std::string(toString(path))] = r;
+  }
+  return out;
+}
+
+void printTraffic(const json& t) {
+  if (t.is_null()) return;
+  if (t.contains("note")) {
+    std::printf("\nmoving lamps (issue 15): %s\n", t["note"].get<std::string>().c_str());
+    return;
+  }
+  std::printf("\nmoving lamps (issue 15): %s at %d x %d (%s surfaces), %zu lamps of which %zu measured lamps move "
+              "every frame (15 m/s, 30 Hz)\n",
+              t["scene"].get<std::string>().c_str(), t["width"].get<int>(), t["height"].get<int>(),
+              t["surface"].get<std::string>().c_str(), t["lamps"].get<std::size_t>(), t["moving_lamps"].get<std::size_t>());
+  printStage("static frame (no cars)", t["static"]);
+  for (const char* k : {"map", "pencil"}) {
+    const json& r = t[k];
+    char note[200];
+    std::snprintf(note, sizeof note, "  %zu px evaluated; %.1f x the static frame", r["evaluated_pixels"].get<std::size_t>(),
+                  r["vs_static"].get<double>());
+    const std::string name = std::string("with the cars, ") + k;
+    printStage(name.c_str(), r, note);
+    if (std::string(k) == "map")
+      std::printf("  %-30s %9.2f ms  (%zu pixels evaluated for the maps)\n", "  of which lamp maps", r["map_ms"].get<double>(),
+                  r["map_nodes"].get<std::size_t>());
+    printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
+  }
+}
+
 /// Issue 7's additions beyond the paper, each at its own size.
 json benchAdditions(const Scene& base, const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
   json out;
   out["gpu_airlight"] = gpuAirlightStage(base, o, threads, gl);
   out["near_field"] = nearFieldStage(base, o, threads);
+  out["traffic"] = trafficStage(o, threads, gl);
   return out;
 }
 
@@ -809,6 +959,7 @@ void printAdditions(const json& a) {
     printError("  aperture vs point, full", n["aperture_vs_point_full"]);
     std::printf("  %-30s %.6f\n", "  aperture / point, sum", n["sum_ratio"].get<double>());
   }
+  printTraffic(a["traffic"]);
 }
 
 }  // namespace
@@ -822,6 +973,7 @@ int runBench(const BenchOptions& options) {
     o.viewTableStepDeg = 0.5;
     o.gpuSize = "48x27";
     o.apertureSize = "160x90";
+    o.trafficSize = "160x90";
   }
   std::vector<std::pair<int, int>> sizes;
   for (const std::string& s : o.sizes) {

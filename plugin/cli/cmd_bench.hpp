@@ -13,6 +13,8 @@ namespace fogbeam::cli {
 /// The shipped config/scenes/bench.toml (an absolute path set by plugin/CMakeLists.txt, defined
 /// in cmd_bench.cpp: the one source that gets the path as a compile definition).
 extern const char* const kBenchDefaultScene;
+/// The shipped config/scenes/traffic.toml (issue 15's moving lamps), the same way.
+extern const char* const kBenchTrafficScene;
 
 struct BenchOptions {
   /// --scene: scene file (default: the shipped bench scene).
@@ -43,6 +45,9 @@ struct BenchOptions {
   // (aperture) lamps at one size each (llvmpipe runs the GPU path on the CPU: minutes at 720p).
   std::string gpuSize = "160x90";        ///< --gpu-size: WIDTHxHEIGHT of the GPU airlight comparison
   std::string apertureSize = "320x180";  ///< --aperture-size: WIDTHxHEIGHT of the near-field lamps' comparison
+  // Issue 15: lamps that move relative to the eye (oncoming traffic), on their own scene.
+  std::string trafficScene = kBenchTrafficScene;  ///< --traffic-scene: scene with moving measured lamps
+  std::string trafficSize = "1280x720";          ///< --traffic-size: WIDTHxHEIGHT of the traffic drive
 };
 
 /// Runs the benchmark; returns the exit status: 0, 1 when the JSON file cannot be written, 2 on

@@ -159,7 +159,7 @@ int runRender(const RenderOptions& o) {
   } else {
     t0 = Clock::now();
     FastPathOptions fast;
-    fast.moving_lamps = o.movingLamps == "per-ray" ? MovingLampPath::PerRay : MovingLampPath::Pencil;
+    fast.moving_lamps = parseMovingLampPath(o.movingLamps).value_or(MovingLampPath::Pencil);
     auto evaluator = AirlightImageEvaluator::build(*scene, *method, {}, o.threads, fast);
     if (!evaluator) {
       std::fprintf(stderr, "fogbeam render: %s\n", evaluator.error().message.c_str());

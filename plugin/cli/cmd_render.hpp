@@ -30,7 +30,7 @@ struct RenderOptions {
   /// --tolerance: subsampling's relative error allowed between a block's centre and its bilinear
   /// prediction (default: the library's, 0.005).
   double tolerance = SubsamplingOptions{}.rel_tolerance;
-  /// --moving-lamps: measured and spot lamps fixed in the world, pencil | per-ray (default pencil).
+  /// --moving-lamps: measured and spot lamps fixed in the world, pencil | map | per-ray (default pencil).
   std::string movingLamps = "pencil";
   /// --threads: worker threads; 0 (default): all cores.
   unsigned threads = 0;

@@ -108,8 +108,10 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
       ->check(CLI::IsMember({"cpu", "gpu"}));
   sub->add_flag("--full", o->full, "evaluate every pixel (no adaptive subsampling)");
   sub->add_option("--moving-lamps", o->movingLamps,
-                  "measured and spot lamps fixed in the world (not mount = \"vehicle\"): pencil (default) | per-ray")
-      ->check(CLI::IsMember({"pencil", "per-ray"}));
+                  "measured and spot lamps fixed in the world (not mount = \"vehicle\"): pencil (default: the pencil "
+                  "integrator per pixel) | map (each lamp's own adaptive sampling of the frame) | per-ray (the "
+                  "accurate method per pixel)")
+      ->check(CLI::IsMember({"pencil", "map", "per-ray"}));
   sub->add_option("--exposure", o->exposure,
                   "PNG exposure in EV: x = L * 2^EV / (1 cd/m2), Reinhard x/(1+x), sRGB (default 0: 1 cd/m2 = mid-grey)");
   sub->add_option("--coarse-step", o->coarseStep,
@@ -143,6 +145,11 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
                   "size WIDTHxHEIGHT of the GPU airlight comparison (default 160x90: llvmpipe runs it on the CPU)");
   sub->add_option("--aperture-size", o->apertureSize,
                   "size WIDTHxHEIGHT of the near-field (aperture) lamps' comparison (default 320x180)");
+  sub->add_option("--traffic-scene", o->trafficScene,
+                  "scene of the moving-lamp section: measured lamps not fixed to the camera move every frame "
+                  "(default: the shipped config/scenes/traffic.toml)");
+  sub->add_option("--traffic-size", o->trafficSize,
+                  "size WIDTHxHEIGHT of the moving-lamp section (default 1280x720)");
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
   sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
       ->check(CLI::Range(10, 1000000));

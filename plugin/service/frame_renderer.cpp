@@ -221,7 +221,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   if (!m) return m.error();
   impl->method = *m;
   impl->fast.view_table_step_deg = config.view_table_step_deg;
-  impl->fast.moving_lamps = config.moving_lamps == "per-ray" ? MovingLampPath::PerRay : MovingLampPath::Pencil;
+  impl->fast.moving_lamps = parseMovingLampPath(config.moving_lamps).value_or(MovingLampPath::Pencil);
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
   impl->vehicleCamera = channelCamera(config, impl->channel);

@@ -198,7 +198,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     c.method = s.choice("method", methods, c.method);
     c.subsampling = s.boolean("subsampling", c.subsampling);
     c.view_table_step_deg = s.number("view_table_step_deg", Range{0.05, 5.0}, c.view_table_step_deg);
-    const std::array<std::string_view, 2> moving{"pencil", "per-ray"};
+    const std::array<std::string_view, 3> moving{"pencil", "map", "per-ray"};
     c.moving_lamps = s.choice("moving_lamps", moving, c.moving_lamps);
     const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
     c.surface = s.choice("surface", surfaces, c.surface);

@@ -216,7 +216,7 @@ TEST(ServiceConfig, ErrorsNameTheLayerLineAndKey) {
   EXPECT_NE(errorOf("[timing]\nrate_hz = 30\nmode = \"lockstep\"\n").find("bad.toml:3: [timing] mode: expected \"free-running\" or \"lock-step\", found \"lockstep\""),
             std::string::npos)
       << errorOf("[timing]\nmode = \"lockstep\"\n");
-  EXPECT_NE(errorOf("[render]\nmoving_lamps = \"table\"\n").find("bad.toml:2: [render] moving_lamps: expected \"pencil\" or \"per-ray\", found \"table\""),
+  EXPECT_NE(errorOf("[render]\nmoving_lamps = \"table\"\n").find("bad.toml:2: [render] moving_lamps: expected \"pencil\", \"map\" or \"per-ray\", found \"table\""),
             std::string::npos)
       << errorOf("[render]\nmoving_lamps = \"table\"\n");
   EXPECT_NE(errorOf("[render]\nthreds = 2\n").find("bad.toml:2: [render]: unknown key 'threds' (did you mean 'threads'?)"),

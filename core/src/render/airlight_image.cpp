@@ -81,6 +81,22 @@ struct ViewKey {
 
 }  // namespace
 
+std::optional<MovingLampPath> parseMovingLampPath(std::string_view name) noexcept {
+  if (name == "per-ray") return MovingLampPath::PerRay;
+  if (name == "pencil") return MovingLampPath::Pencil;
+  if (name == "map") return MovingLampPath::Map;
+  return std::nullopt;
+}
+
+std::string_view toString(MovingLampPath path) noexcept {
+  switch (path) {
+    case MovingLampPath::PerRay: return "per-ray";
+    case MovingLampPath::Pencil: return "pencil";
+    case MovingLampPath::Map: return "map";
+  }
+  return "?";
+}
+
 struct AirlightImageEvaluator::State {
   AirlightMethod method = AirlightMethod::Accurate;
   FastPathOptions fast;
@@ -94,6 +110,12 @@ struct AirlightImageEvaluator::State {
     Mat3 axes{1.0};
   };
   std::vector<PencilKey> pencilKeys;
+  // MovingLampPath::Map: per pencilLamps entry, the lamp's map of this frame, and the frame's
+  // distance edges they share.
+  std::vector<LampMap> maps;
+  DepthEdges depthEdges;
+  double mapSeconds = 0.0;
+  std::size_t mapNodes = 0;
   std::shared_ptr<const kernels::IsoTable> isoTable;
   // Per vehicle lamp v: viewTables[kTablesPerLamp·v] covers the frustum except a hole around
   // the lamp's image, the next ones (empty when the lamp is not in front) finer rings inside
@@ -163,7 +185,7 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
       st.isoLamps.push_back(i);
     else if (useFast && sl.mount == LampMount::Vehicle)
       st.viewLamps.push_back(i);
-    else if (useFast && fast.moving_lamps == MovingLampPath::Pencil)
+    else if (useFast && fast.moving_lamps != MovingLampPath::PerRay)
       st.pencilLamps.push_back(i);
     else
       st.rayLamps.push_back(i);
@@ -172,6 +194,8 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
   if (!st.pencilLamps.empty()) {
     // The pencil's options are checked here, once: an integrator built per frame must not fail.
     if (Status v = PencilAirlight::validate(fast.pencil_options); !v) return Error{"fast path: " + v.error().message};
+    if (fast.moving_lamps == MovingLampPath::Map)
+      if (Status v = LampMap::validate(fast.lamp_map_options); !v) return Error{"fast path: " + v.error().message};
   }
   st.viewTables.resize(kTablesPerLamp * st.viewLamps.size());
   st.rayGuards.resize(st.viewLamps.size());
@@ -213,7 +237,8 @@ std::string AirlightImageEvaluator::describe() const {
     o << "per-ray evaluation for all " << lamps_.size() << " lamps";
   } else {
     o << st.isoLamps.size() << " isotropic lamp(s) by F table, " << st.viewLamps.size()
-      << " vehicle lamp(s) by view table, " << st.pencilLamps.size() << " moving lamp(s) by pencil, "
+      << " vehicle lamp(s) by view table, " << st.pencilLamps.size() << " moving lamp(s) by "
+      << (st.fast.moving_lamps == MovingLampPath::Map ? "lamp map, " : "pencil, ")
       << st.rayLamps.size() << " per ray; SIMD target "
       << kernels::activeTarget();
   }
@@ -373,6 +398,7 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
     }
   }
   if (!st.rayLamps.empty() || !st.pencilLamps.empty()) {
+    const bool useMaps = st.fast.moving_lamps == MovingLampPath::Map;
     for (std::size_t k = 0; k < n; ++k) {
       const Ray ray{f.cam->position_m,
                     f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
@@ -387,7 +413,8 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
       for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
         if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q]) continue;
         const PencilAirlight& pa = *st.pencils[q];
-        const double l = pa.evaluate(ray.direction, ray.distance_m);
+        const double l = useMaps ? st.maps[q].lookup(static_cast<int>(px.x[k]), static_cast<int>(px.y[k]))
+                                 : pa.evaluate(ray.direction, ray.distance_m);
         for (int c = 0; c < 3; ++c) acc[c] += l * pa.lamp().lamp().color[c];
       }
       r[k] += static_cast<float>(acc[0]);
@@ -1034,6 +1061,32 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
   }
 }
 
+// Stage "refresh lamp maps" (MovingLampPath::Map): each enabled moving lamp's own adaptive
+// sampling of this frame, at the frame's distances (render/lamp_map.hpp): rebuilt every frame,
+// since the surfaces in front of the lamps may change with nothing else moving. The distance
+// edges are found once for all the maps, with the subsampling's own rule.
+void refreshLampMaps(State& st, const Camera& cam, const SurfaceBuffers& surface, const SubsamplingOptions& opt,
+                     double kt, ThreadPool& pool) {
+  st.mapSeconds = 0.0;
+  st.mapNodes = 0;
+  if (st.fast.moving_lamps != MovingLampPath::Map) return;
+  st.maps.resize(st.pencilLamps.size());
+  bool any = false;
+  for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) any = any || (st.enabled[st.pencilLamps[q]] && st.pencils[q]);
+  if (!any) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  const double far = opt.edge_transmittance > 0.0 && kt > 0.0 ? -std::log(opt.edge_transmittance) / kt : 0.0;
+  st.depthEdges.build(surface.distance.data(), cam.width, cam.height, st.fast.lamp_map_options.coarse_px,
+                      opt.depth_edge_rel, far, pool);
+  for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
+    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q]) continue;
+    LampMap& m = st.maps[q];
+    m.build(*st.pencils[q], cam, st.depthEdges, st.fast.lamp_map_options, pool);
+    st.mapNodes += m.stats().nodes;
+  }
+  st.mapSeconds = since(t0);
+}
+
 // Stage "locate lamps": the image positions (pixels, x right, y down) of the enabled lamps in
 // front of the camera (st.lampPixels, capacity kept between frames). A lamp's own image is a
 // peak of airlight that a block's corners cannot see: the block test splits blocks within
@@ -1209,6 +1262,9 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   out.table_seconds = refreshSkyTables(st, *pool_);
   out.table_seconds += refreshViewTables(st, lamps_, *pool_, cf);
   refreshPencils(st, lamps_, cf.cam);
+  refreshLampMaps(st, cf.cam, surface, opt, scene.fog.extinction_per_m, *pool_);
+  out.map_seconds = st.mapSeconds;
+  out.map_nodes = st.mapNodes;
   locateLampImages(st, lamps_, cf);
 
   // The image: tiling and per-thread memory, then the pixels (every one, or the coarse grid and

@@ -31,6 +31,7 @@
 
 #include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/physics/airlight_pencil.hpp>
+#include <fogbeam/render/lamp_map.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
@@ -39,7 +40,9 @@
 
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -65,11 +68,16 @@ struct SubsamplingOptions {
 ///  * PerRay — the accurate method per pixel (the definition; 15–25 µs per pixel and lamp for
 ///    a measured profile);
 ///  * Pencil — per pixel through PencilAirlight, whose profile samples are shared by every
-///    ray in a plane through eye and lamp: a few times faster, within 1e-3 (p95) of PerRay.
-/// (View tables rebuilt every frame were tried and dropped: bilinear over directions, they blur
-/// the sharp pattern around an oncoming lamp's image, 16 % p95 at 0.5°, and cost more than
-/// the pencil per pixel at cab resolutions.)
-enum class MovingLampPath { PerRay, Pencil };
+///    ray in a plane through eye and lamp: a few times faster, within 1e-3 (p95) of PerRay;
+///  * Map — per frame, each lamp's own adaptive table of pencil columns over the image
+///    (render/lamp_map.hpp), read per pixel at the pixel's own distance; the pencil per ray
+///    only at the lamp's image and where the table cannot follow the lamp's pattern.
+/// (Uniform view tables rebuilt every frame were tried and dropped: bilinear over directions
+/// in distance, they blur the sharp pattern around an oncoming lamp's image, 16 % p95 at 0.5°.)
+enum class MovingLampPath { PerRay, Pencil, Map };
+/// "per-ray", "pencil", "map" (the names of config keys and command-line options).
+[[nodiscard]] std::optional<MovingLampPath> parseMovingLampPath(std::string_view name) noexcept;
+[[nodiscard]] std::string_view toString(MovingLampPath path) noexcept;
 
 /// The accurate method's table-and-SIMD path (airlight_kernels.hpp).
 struct FastPathOptions {
@@ -81,6 +89,7 @@ struct FastPathOptions {
   /// tabulated once for them.
   MovingLampPath moving_lamps = MovingLampPath::Pencil;
   PencilOptions pencil_options{};
+  LampMapOptions lamp_map_options{};  ///< MovingLampPath::Map
 };
 
 /// Airlight per pixel and channel (cd/m²), and how many pixels were evaluated.
@@ -90,6 +99,8 @@ struct AirlightImage {
   std::size_t evaluated = 0;     ///< rays evaluated (the rest interpolated; tile borders count twice)
   double seconds = 0.0;          ///< wall time of the last evaluate(), table builds included
   double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view and sky tables
+  double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
+  std::size_t map_nodes = 0;     ///< directions evaluated for those maps
   // The stages run interleaved on all threads: thread time per stage divided by the threads
   // (equal to wall time when the threads are kept busy).
   double eval_seconds = 0.0;     ///< evaluating pixels (kernels and per-ray lamps)

@@ -74,7 +74,7 @@ struct ServiceConfig {
   std::string method = "accurate";
   bool subsampling = true;
   double view_table_step_deg = 0.5;
-  std::string moving_lamps = "pencil";  ///< traffic and world lamps: "pencil" | "per-ray" (MovingLampPath)
+  std::string moving_lamps = "pencil";  ///< traffic and world lamps: "pencil" | "map" | "per-ray" (MovingLampPath)
   std::string surface = "auto";
   unsigned threads = 0;
 
