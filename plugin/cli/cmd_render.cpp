@@ -160,6 +160,7 @@ int runRender(const RenderOptions& o) {
     t0 = Clock::now();
     FastPathOptions fast;
     fast.moving_lamps = parseMovingLampPath(o.movingLamps).value_or(MovingLampPath::Pencil);
+    fast.table_cache_dir = tableCacheDirFor(o.tableCache);
     auto evaluator = AirlightImageEvaluator::build(*scene, *method, {}, o.threads, fast);
     if (!evaluator) {
       std::fprintf(stderr, "fogbeam render: %s\n", evaluator.error().message.c_str());
@@ -216,8 +217,11 @@ int runRender(const RenderOptions& o) {
   } else {
     std::printf("  surface pass                %8.1f ms  (%s)\n", surfaceMs, surfaceName.c_str());
     std::printf("  airlight tables             %8.1f ms\n", buildMs);
-    std::printf("  airlight view tables        %8.1f ms  (vehicle-mounted lamps; reused while the rig and fog stay)\n",
-                1e3 * airlight.table_seconds);
+    std::printf("  airlight view tables        %8.1f ms  (vehicle-mounted lamps; %s)\n", 1e3 * airlight.table_seconds,
+                airlight.view_tables_loaded > 0 ? "loaded from the table cache"
+                                                : "built; reused while the rig and fog stay");
+    if (!airlight.table_cache_error.empty())
+      std::fprintf(stderr, "fogbeam render: table cache: %s\n", airlight.table_cache_error.c_str());
     std::printf("  airlight                    %8.1f ms  (%zu of %zu pixels evaluated, %.1f %%%s)\n",
                 1e3 * (airlight.seconds - airlight.table_seconds), airlight.evaluated, n,
                 100.0 * static_cast<double>(airlight.evaluated) / static_cast<double>(n), o.full ? ", --full" : "");

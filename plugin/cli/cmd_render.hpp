@@ -32,6 +32,9 @@ struct RenderOptions {
   double tolerance = SubsamplingOptions{}.rel_tolerance;
   /// --moving-lamps: measured and spot lamps fixed in the world, pencil | map | per-ray (default pencil).
   std::string movingLamps = "pencil";
+  /// --table-cache: where the vehicle lamps' view tables are kept between runs: auto (default:
+  /// $XDG_CACHE_HOME/fogbeam or ~/.cache/fogbeam) | off | a directory.
+  std::string tableCache = "auto";
   /// --threads: worker threads; 0 (default): all cores.
   unsigned threads = 0;
   // Issue 7's additions; empty (default): as the scene's [glow], [glare], [render] say.

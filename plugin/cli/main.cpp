@@ -112,6 +112,9 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
                   "integrator per pixel) | map (each lamp's own adaptive sampling of the frame) | per-ray (the "
                   "accurate method per pixel)")
       ->check(CLI::IsMember({"pencil", "map", "per-ray"}));
+  sub->add_option("--table-cache", o->tableCache,
+                  "where the vehicle lamps' view tables are kept between runs: auto (default: $XDG_CACHE_HOME/fogbeam "
+                  "or ~/.cache/fogbeam) | off | a directory");
   sub->add_option("--exposure", o->exposure,
                   "PNG exposure in EV: x = L * 2^EV / (1 cd/m2), Reinhard x/(1+x), sRGB (default 0: 1 cd/m2 = mid-grey)");
   sub->add_option("--coarse-step", o->coarseStep,

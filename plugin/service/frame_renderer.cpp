@@ -7,7 +7,10 @@
 #include <fogbeam/render/pixel_pack.hpp>
 #include <fogbeam/render/surface.hpp>
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <future>
@@ -194,6 +197,15 @@ struct ChannelRenderer::Impl {
     std::fill(sky.distance.begin(), sky.distance.end(), std::numeric_limits<float>::infinity());
     AirlightImage scratch;
     e->evaluate(scene, sky, subsampling, scratch);
+    if (!scratch.table_cache_error.empty()) {
+      // The next start builds these tables again; nothing else is lost. At most every 10 s: a
+      // fog ramp builds tables one after the other.
+      static std::atomic<std::int64_t> lastLog{0};
+      const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
+      std::int64_t last = lastLog.load();
+      if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
+        spdlog::warn("render: view tables not cached ({}): the next start builds them again", scratch.table_cache_error);
+    }
     return e;
   }
 };
@@ -221,6 +233,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   if (!m) return m.error();
   impl->method = *m;
   impl->fast.view_table_step_deg = config.view_table_step_deg;
+  impl->fast.table_cache_dir = tableCacheDirFor(config.table_cache);
   impl->fast.moving_lamps = parseMovingLampPath(config.moving_lamps).value_or(MovingLampPath::Pencil);
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);

@@ -53,6 +53,7 @@ constexpr std::array kRenderKeys{
     KeySpec{"moving_lamps"},
     KeySpec{"surface"},
     KeySpec{"threads"},
+    KeySpec{"table_cache"},
 };
 constexpr std::array kTimingKeys{
     KeySpec{"mode"},
@@ -203,6 +204,10 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
     c.surface = s.choice("surface", surfaces, c.surface);
     c.threads = static_cast<unsigned>(s.integer("threads", 0, 256, c.threads));
+    if (const toml::node* n = s.find("table_cache")) {
+      c.table_cache = s.string("table_cache", "expected \"auto\", \"off\" or a directory");
+      if (c.table_cache.empty()) s.failAt(*n, "table_cache", "expected \"auto\", \"off\" or a directory, found \"\"");
+    }
   }
   // [glow] and [glare]: the scene's tables, parsed by the scene's code. As in a scene file the
   // table's presence turns its effect on unless it says `enabled = false`; its other keys keep
@@ -474,7 +479,7 @@ std::string toToml(const ServiceConfig& c) {
   o << "\n[render]\nmethod = " << quoted(c.method) << "\nsubsampling = " << flag(c.subsampling)
     << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nmoving_lamps = " << quoted(c.moving_lamps)
     << "\nsurface = " << quoted(c.surface)
-    << "\nthreads = " << c.threads << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
+    << "\nthreads = " << c.threads << "\ntable_cache = " << quoted(c.table_cache) << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
     << "\ngpu_pieces = " << c.effects.render.gpu_pieces << "\n";
   o << "\n[glow]\nenabled = " << flag(c.effects.glow.enabled) << "\nfade_in = " << num(c.effects.glow.fade_in) << "\n";
   o << "\n[glare]\nenabled = " << flag(c.effects.glare.enabled) << "\nage_years = " << num(c.effects.glare.age_years)

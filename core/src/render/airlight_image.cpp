@@ -1,5 +1,7 @@
 #include <fogbeam/render/airlight_image.hpp>
 
+#include "render/view_table_cache.hpp"
+
 #include <fogbeam/physics/airlight_pencil.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 
@@ -81,6 +83,14 @@ struct ViewKey {
 
 }  // namespace
 
+std::string defaultTableCacheDir() { return detail::defaultTableCacheDir().string(); }
+
+std::string tableCacheDirFor(std::string_view setting) {
+  if (setting == "off") return {};
+  if (setting == "auto") return defaultTableCacheDir();
+  return std::string(setting);
+}
+
 std::optional<MovingLampPath> parseMovingLampPath(std::string_view name) noexcept {
   if (name == "per-ray") return MovingLampPath::PerRay;
   if (name == "pencil") return MovingLampPath::Pencil;
@@ -114,6 +124,9 @@ struct AirlightImageEvaluator::State {
   // distance edges they share.
   std::vector<LampMap> maps;
   DepthEdges depthEdges;
+  // Table cache (FastPathOptions::table_cache_dir): lamps loaded this frame, the last write error.
+  std::size_t tablesLoaded = 0;
+  std::string tableCacheError;
   double mapSeconds = 0.0;
   std::size_t mapNodes = 0;
   std::shared_ptr<const kernels::IsoTable> isoTable;
@@ -992,6 +1005,27 @@ void mergeViewTables(State& st) {
   st.mergedValid = true;
 }
 
+// Everything one vehicle lamp's view tables depend on, for the table cache.
+detail::TableKey viewTableKey(const AirlightEvaluator& ev, const Camera& cam, const ViewKey& key,
+                              const FastPathOptions& fast, double viewD) {
+  detail::TableKey k;
+  k.add("fogbeam view tables").add(static_cast<std::int64_t>(kTablesPerLamp));
+  k.addProfile(*ev.lamp().profile);
+  for (int c = 0; c < 3; ++c) k.add(ev.lamp().color[c]);
+  // The pose within ViewKey's own tolerance (a moving vehicle's last bits vary along the road).
+  for (int i = 0; i < 3; ++i) k.addNear(key.lampInCamera[i]);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) k.addNear(key.lampAxesInCamera[i][j]);
+  k.add(key.fovX).add(key.aspect).add(key.principalX).add(key.principalY).add(key.kt).add(key.albedo);
+  k.add(static_cast<std::int64_t>(cam.width)).add(static_cast<std::int64_t>(cam.height));
+  k.addPhase(ev.medium().phase);
+  k.add(fast.view_table_step_deg).add(static_cast<std::int64_t>(fast.view_table_distances)).add(viewD);
+  const AirlightOptions& o = ev.options();
+  k.add(static_cast<std::int64_t>(o.g_table_theta)).add(static_cast<std::int64_t>(o.g_table_k)).add(o.g_table_k_max);
+  k.add(static_cast<std::int64_t>(o.accurate_segments)).add(static_cast<std::int64_t>(o.accurate_spot_segments));
+  return k;
+}
+
 // Stage "refresh view tables": the vehicle lamps' view tables, rebuilt only for lamps whose pose
 // relative to the camera, the frustum or the fog changed (ViewKey; a table costs seconds, a
 // fixed rig builds once), then merged again when a table or the set of enabled lamps changed.
@@ -1022,7 +1056,28 @@ double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const 
     if (st.viewValid[v] && st.viewKeys[v].sameAs(key)) continue;
     viewChanged = true;
     kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
-    buildLampViewTables(ev, cam, key, st.fast, viewD, pool, tables, st.rayGuards[v]);
+    if (!st.fast.table_cache_dir.empty()) {
+      const detail::TableKey tk = viewTableKey(ev, cam, key, st.fast, viewD);
+      detail::LampTables lt{tables, kTablesPerLamp};
+      const auto tl = std::chrono::steady_clock::now();
+      if (detail::loadLampTables(st.fast.table_cache_dir, tk, lt)) {
+        st.rayGuards[v] = {lt.guard[0], lt.guard[1], lt.guard[2]};
+        st.viewKeys[v] = key;
+        st.viewValid[v] = true;
+        ++st.tablesLoaded;
+        seconds += since(tl);
+        continue;
+      }
+      buildLampViewTables(ev, cam, key, st.fast, viewD, pool, tables, st.rayGuards[v]);
+      const State::RayGuard& g = st.rayGuards[v];
+      lt.guard[0] = g.a;
+      lt.guard[1] = g.b;
+      lt.guard[2] = g.r2;
+      if (Status stored = detail::storeLampTables(st.fast.table_cache_dir, tk, lt); !stored)
+        st.tableCacheError = stored.error().message;
+    } else {
+      buildLampViewTables(ev, cam, key, st.fast, viewD, pool, tables, st.rayGuards[v]);
+    }
     st.viewKeys[v] = key;
     st.viewValid[v] = true;
     for (std::size_t t = 0; t < kTablesPerLamp; ++t) seconds += tables[t].build_seconds;
@@ -1260,7 +1315,10 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   // Lamps and tables for this camera pose: what the kernels read.
   prepareIsoLamps(st, lamps_, cf);
   out.table_seconds = refreshSkyTables(st, *pool_);
+  st.tablesLoaded = 0;
   out.table_seconds += refreshViewTables(st, lamps_, *pool_, cf);
+  out.view_tables_loaded = st.tablesLoaded;
+  if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
   refreshPencils(st, lamps_, cf.cam);
   refreshLampMaps(st, cf.cam, surface, opt, scene.fog.extinction_per_m, *pool_);
   out.map_seconds = st.mapSeconds;

@@ -109,6 +109,7 @@ class AirlightEvaluator {
   [[nodiscard]] const TableStats& stats() const noexcept { return stats_; }
   [[nodiscard]] const Lamp& lamp() const noexcept { return lamp_; }
   [[nodiscard]] const Medium& medium() const noexcept { return medium_; }
+  [[nodiscard]] const AirlightOptions& options() const noexcept { return options_; }
 
  private:
   friend class PencilAirlight;  // shares the accurate method's G-moment table

@@ -75,6 +75,13 @@ struct SubsamplingOptions {
 /// (Uniform view tables rebuilt every frame were tried and dropped: bilinear over directions
 /// in distance, they blur the sharp pattern around an oncoming lamp's image, 16 % p95 at 0.5°.)
 enum class MovingLampPath { PerRay, Pencil, Map };
+/// Where the service and `fogbeam render` keep view tables by default (`table_cache = "auto"`):
+/// $XDG_CACHE_HOME/fogbeam, else $HOME/.cache/fogbeam; empty when neither is set (no cache).
+[[nodiscard]] std::string defaultTableCacheDir();
+/// The directory a `table_cache` setting names: "off" → empty (no cache), "auto" →
+/// defaultTableCacheDir(), anything else → itself.
+[[nodiscard]] std::string tableCacheDirFor(std::string_view setting);
+
 /// "per-ray", "pencil", "map" (the names of config keys and command-line options).
 [[nodiscard]] std::optional<MovingLampPath> parseMovingLampPath(std::string_view name) noexcept;
 [[nodiscard]] std::string_view toString(MovingLampPath path) noexcept;
@@ -90,6 +97,11 @@ struct FastPathOptions {
   MovingLampPath moving_lamps = MovingLampPath::Pencil;
   PencilOptions pencil_options{};
   LampMapOptions lamp_map_options{};  ///< MovingLampPath::Map
+  /// Directory where vehicle lamps' view tables are kept between runs, keyed by everything they
+  /// depend on (the profile's data, the lamp's pose in the camera frame, the frustum, the fog,
+  /// these options and the code's version): a second start with the same rig, view and fog loads
+  /// them instead of building them (seconds). Empty (default): no cache.
+  std::string table_cache_dir;
 };
 
 /// Airlight per pixel and channel (cd/m²), and how many pixels were evaluated.
@@ -99,6 +111,8 @@ struct AirlightImage {
   std::size_t evaluated = 0;     ///< rays evaluated (the rest interpolated; tile borders count twice)
   double seconds = 0.0;          ///< wall time of the last evaluate(), table builds included
   double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view and sky tables
+  std::size_t view_tables_loaded = 0;  ///< vehicle lamps whose view tables came from the table cache this frame
+  std::string table_cache_error;       ///< the last failure to write the table cache (empty: none)
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
   // The stages run interleaved on all threads: thread time per stage divided by the threads

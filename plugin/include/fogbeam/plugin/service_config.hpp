@@ -77,6 +77,9 @@ struct ServiceConfig {
   std::string moving_lamps = "pencil";  ///< traffic and world lamps: "pencil" | "map" | "per-ray" (MovingLampPath)
   std::string surface = "auto";
   unsigned threads = 0;
+  /// Where the ego lamps' view tables are kept between starts: "auto" ($XDG_CACHE_HOME/fogbeam
+  /// or ~/.cache/fogbeam), "off", or a directory (tableCacheDirFor, render/airlight_image.hpp).
+  std::string table_cache = "auto";
 
   /// [render] airlight, gpu_pieces; [glow]; [glare]: the scene's tables (docs/scene.md), all
   /// off and the CPU airlight by default.

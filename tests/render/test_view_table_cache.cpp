@@ -1,0 +1,177 @@
+// The vehicle lamps' view tables on disk (FastPathOptions::table_cache_dir): a second evaluator
+// with the same lamps, view and fog loads them and renders the same bytes; anything else it
+// depends on, a damaged file or another key is a miss, never a wrong table.
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/surface.hpp>
+
+#include "view_table_cache.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+namespace fogbeam {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TempDir {
+  fs::path path;
+  TempDir() : path(fs::temp_directory_path() / ("fogbeam_table_cache_" + std::to_string(::getpid()))) {
+    fs::remove_all(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+Scene egoScene(double visibility) {
+  Scene s;
+  s.fog.extinction_per_m = extinctionFromVisibility(visibility);
+  s.fog.albedo = 0.95;
+  s.fog.phase = makeHenyeyGreenstein(0.85).value();
+  s.camera.position_m = {0.0, 0.35, 1.2};
+  s.camera.width = 96;
+  s.camera.height = 54;
+  auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
+  EXPECT_TRUE(low.has_value());
+  for (double y : {0.7, -0.7}) {
+    Lamp l;
+    l.position_m = {2.0, y, 0.65};
+    l.worldFromLamp = worldFromYawPitchRoll(0.0, radians(0.57), 0.0);
+    l.profile = *low;
+    s.lamps.push_back({"ego", l, LampMount::Vehicle});
+  }
+  s.planes.push_back(Plane{{0, 0, 0}, {0, 0, 1}, 0.15});
+  return s;
+}
+
+AirlightImage frame(const Scene& scene, const std::string& cacheDir) {
+  FastPathOptions f;
+  f.view_table_step_deg = 1.0;  // the cache's behaviour, not the tables' accuracy
+  f.view_table_distances = 16;
+  f.table_cache_dir = cacheDir;
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, f);
+  EXPECT_TRUE(ev.has_value());
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  AirlightImage img;
+  ev->evaluate(scene, surf, SubsamplingOptions{}, img);
+  EXPECT_TRUE(img.table_cache_error.empty()) << img.table_cache_error;
+  return img;
+}
+
+std::vector<fs::path> cacheFiles(const fs::path& dir) {
+  std::vector<fs::path> out;
+  if (!fs::exists(dir)) return out;
+  for (const auto& e : fs::directory_iterator(dir)) out.push_back(e.path());
+  return out;
+}
+
+TEST(ViewTableCache, ASecondStartLoadsTheTablesAndRendersTheSameBytes) {
+  TempDir dir;
+  const Scene scene = egoScene(80.0);
+  const AirlightImage built = frame(scene, dir.path.string());
+  EXPECT_EQ(built.view_tables_loaded, 0u);
+  EXPECT_EQ(cacheFiles(dir.path).size(), 2u);  // one file per lamp
+  const AirlightImage loaded = frame(scene, dir.path.string());
+  EXPECT_EQ(loaded.view_tables_loaded, 2u);
+  EXPECT_EQ(loaded.rgb, built.rgb);
+  const AirlightImage none = frame(scene, "");
+  EXPECT_EQ(none.view_tables_loaded, 0u);
+  EXPECT_EQ(none.rgb, built.rgb);
+  std::printf("view tables: built in %.1f ms, loaded in %.1f ms\n", 1e3 * built.table_seconds, 1e3 * loaded.table_seconds);
+}
+
+TEST(ViewTableCache, AnotherFogOrRigIsAMiss) {
+  TempDir dir;
+  const Scene scene = egoScene(80.0);
+  (void)frame(scene, dir.path.string());
+  EXPECT_EQ(frame(egoScene(120.0), dir.path.string()).view_tables_loaded, 0u);
+  Scene moved = scene;
+  moved.lamps[0].lamp.position_m.z += 0.01;  // one lamp 1 cm higher: its own tables only
+  EXPECT_EQ(frame(moved, dir.path.string()).view_tables_loaded, 1u);
+  Scene phase = scene;
+  phase.fog.phase = makeHenyeyGreenstein(0.8).value();
+  EXPECT_EQ(frame(phase, dir.path.string()).view_tables_loaded, 0u);
+  EXPECT_EQ(cacheFiles(dir.path).size(), 2u + 2u + 1u + 2u);
+}
+
+TEST(ViewTableCache, ADamagedFileIsAMissAndIsWrittenAgain) {
+  TempDir dir;
+  const Scene scene = egoScene(80.0);
+  const AirlightImage built = frame(scene, dir.path.string());
+  for (const fs::path& f : cacheFiles(dir.path)) {
+    // Flip one byte in the middle of the data: the checksum refuses the file.
+    std::fstream io(f, std::ios::in | std::ios::out | std::ios::binary);
+    io.seekg(static_cast<std::streamoff>(fs::file_size(f) / 2));
+    char c = 0;
+    io.read(&c, 1);
+    io.seekp(static_cast<std::streamoff>(fs::file_size(f) / 2));
+    c = static_cast<char>(c ^ 0x5a);
+    io.write(&c, 1);
+  }
+  const fs::path truncated = cacheFiles(dir.path).front();
+  fs::resize_file(truncated, fs::file_size(truncated) / 3);
+  const AirlightImage again = frame(scene, dir.path.string());
+  EXPECT_EQ(again.view_tables_loaded, 0u);
+  EXPECT_EQ(again.rgb, built.rgb);
+  // Written again: the next start loads.
+  EXPECT_EQ(frame(scene, dir.path.string()).view_tables_loaded, 2u);
+}
+
+TEST(ViewTableCache, AnUnwritableDirectoryIsReportedAndTheFrameIsRendered) {
+  TempDir dir;
+  fs::create_directories(dir.path);
+  const fs::path blocker = dir.path / "file";
+  std::ofstream(blocker) << "not a directory";
+  const Scene scene = egoScene(80.0);
+  FastPathOptions f;
+  f.view_table_step_deg = 1.0;
+  f.view_table_distances = 16;
+  f.table_cache_dir = (blocker / "cache").string();
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, f);
+  ASSERT_TRUE(ev.has_value());
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  AirlightImage img;
+  ev->evaluate(scene, surf, SubsamplingOptions{}, img);
+  EXPECT_NE(img.table_cache_error.find("cannot create the table cache directory"), std::string::npos)
+      << img.table_cache_error;
+  EXPECT_EQ(img.rgb, frame(scene, "").rgb);
+}
+
+TEST(ViewTableCache, TheOldestFilesGoWhenTheDirectoryIsFull) {
+  TempDir dir;
+  fs::create_directories(dir.path);
+  std::vector<fs::path> files;
+  for (int i = 0; i < 5; ++i) {
+    files.push_back(dir.path / ("vt-" + std::to_string(i) + ".bin"));
+    std::ofstream(files.back()) << std::string(1000, 'x');
+    fs::last_write_time(files.back(), fs::file_time_type::clock::now() - std::chrono::hours(5 - i));
+  }
+  std::ofstream(dir.path / "unrelated.txt") << std::string(5000, 'y');  // not a cache file: kept
+  detail::evictOldest(dir.path, files[0], 2500);
+  EXPECT_TRUE(fs::exists(files[0]));   // the one just written, however old
+  EXPECT_FALSE(fs::exists(files[1]));  // the oldest others
+  EXPECT_FALSE(fs::exists(files[2]));
+  EXPECT_FALSE(fs::exists(files[3]));
+  EXPECT_TRUE(fs::exists(files[4]));
+  EXPECT_TRUE(fs::exists(dir.path / "unrelated.txt"));
+}
+
+TEST(ViewTableCache, SettingsNameTheDirectory) {
+  EXPECT_EQ(tableCacheDirFor("off"), "");
+  EXPECT_EQ(tableCacheDirFor("/var/cache/fb"), "/var/cache/fb");
+  EXPECT_EQ(tableCacheDirFor("auto"), defaultTableCacheDir());
+}
+
+}  // namespace
+}  // namespace fogbeam
