@@ -149,5 +149,33 @@ TEST(LampMap, RefinesAtTheLampsImageAndIsExactAtItsNodes) {
   }
 }
 
+// Odd sizes (cells past the image's edge), an off-axis camera, a following car's low beams
+// behind the eye (no image, rays looking away from them) and an oncoming car: the maps on every
+// pixel against per ray.
+TEST(LampMap, OddSizesOffAxisAndLampsBehindTheEye) {
+  Scene scene = traffic(77, 41, makeHenyeyGreenstein(0.85).value());
+  scene.camera.principal_px = Vec2(20.0, 30.0);
+  scene.lamps.resize(2);  // the near oncoming car
+  for (double y : {0.7, -0.7}) {
+    Lamp l;
+    l.position_m = {-15.0, y, 0.65};  // a following car, facing +x like the ego
+    l.worldFromLamp = worldFromYawPitchRoll(0.0, radians(0.57), 0.0);
+    l.profile = lowBeam();
+    scene.lamps.push_back({"following", l});
+  }
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  const AirlightImage perRay = render(scene, surf, MovingLampPath::PerRay, true);
+  const AirlightImage mapFull = render(scene, surf, MovingLampPath::Map, true);
+  const AirlightImage mapSub = render(scene, surf, MovingLampPath::Map, false);
+  const ErrorFigures full = errorOver(mapFull, perRay), sub = errorOver(mapSub, perRay);
+  std::printf("77x41 off-axis, 4 moving lamps (2 behind the eye): map every pixel p95 %.2e max %.2e over %zu px; "
+              "subsampled p95 %.2e max %.2e\n", full.p95, full.max, full.pixels, sub.p95, sub.max);
+  EXPECT_GT(full.pixels, 200u);  // a tenth of the image: the comparison has something to judge
+  EXPECT_LE(full.p95, 0.01);
+  EXPECT_LE(sub.p95, 0.01);
+  EXPECT_LE(full.max, 0.1);
+}
+
 }  // namespace
 }  // namespace fogbeam

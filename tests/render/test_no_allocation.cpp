@@ -35,7 +35,9 @@ void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 namespace fogbeam {
 namespace {
 
-TEST(NoAllocation, SteadyFramesDoNotAllocate) {
+// Every path of the image evaluator: view table, F table, moving tabulated and spot lamps
+// (through `moving`: the pencil per pixel, or each lamp's map of the frame).
+void expectSteadyFramesDoNotAllocate(MovingLampPath moving) {
   Scene s;
   s.fog.extinction_per_m = extinctionFromVisibility(100.0);
   s.fog.albedo = 0.95;
@@ -54,7 +56,6 @@ TEST(NoAllocation, SteadyFramesDoNotAllocate) {
     l.mount = mount;
     s.lamps.push_back(l);
   };
-  // Every path of the image evaluator: view table, F table, per-ray tabulated and spot.
   lamp({2.2, 0.7, 0.65}, 0.0, *low, LampMount::Vehicle);
   lamp({25.0, -3.0, 8.0}, 0.0, makeProfile(IsotropicProfile{4000.0}).value(), LampMount::World);
   lamp({45.0, 3.5, 0.65}, 180.0, *low, LampMount::World);
@@ -65,6 +66,7 @@ TEST(NoAllocation, SteadyFramesDoNotAllocate) {
   renderSurfacesCpu(s, surf);
   FastPathOptions fast;
   fast.view_table_step_deg = 1.0;
+  fast.moving_lamps = moving;
   auto ev = AirlightImageEvaluator::build(s, AirlightMethod::Accurate, {}, 2, fast);
   ASSERT_TRUE(ev);
   AirlightImage img;
@@ -83,6 +85,12 @@ TEST(NoAllocation, SteadyFramesDoNotAllocate) {
   EXPECT_EQ(allocations.load(), 0) << "heap allocations during two steady frames and a composite";
   EXPECT_GT(img.evaluated, 0u);
 }
+
+TEST(NoAllocation, SteadyFramesDoNotAllocate) { expectSteadyFramesDoNotAllocate(MovingLampPath::Pencil); }
+
+// The maps are rebuilt every frame (the frame's distances may change with nothing else moving):
+// into the buffers of the frames before.
+TEST(NoAllocation, SteadyFramesWithLampMapsDoNotAllocate) { expectSteadyFramesDoNotAllocate(MovingLampPath::Map); }
 
 }  // namespace
 }  // namespace fogbeam
