@@ -53,12 +53,16 @@ Scene egoScene(double visibility) {
   return s;
 }
 
-AirlightImage frame(const Scene& scene, const std::string& cacheDir) {
+FastPathOptions cached(const std::string& cacheDir) {
   FastPathOptions f;
   f.view_table_step_deg = 1.0;  // the cache's behaviour, not the tables' accuracy
   f.view_table_distances = 16;
   f.table_cache_dir = cacheDir;
-  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, f);
+  return f;
+}
+
+AirlightImage frame(const Scene& scene, const std::string& cacheDir) {
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, cached(cacheDir));
   EXPECT_TRUE(ev.has_value());
   SurfaceBuffers surf;
   renderSurfacesCpu(scene, surf);
@@ -133,11 +137,7 @@ TEST(ViewTableCache, AnUnwritableDirectoryIsReportedAndTheFrameIsRendered) {
   const fs::path blocker = dir.path / "file";
   std::ofstream(blocker) << "not a directory";
   const Scene scene = egoScene(80.0);
-  FastPathOptions f;
-  f.view_table_step_deg = 1.0;
-  f.view_table_distances = 16;
-  f.table_cache_dir = (blocker / "cache").string();
-  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, f);
+  auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 2, cached((blocker / "cache").string()));
   ASSERT_TRUE(ev.has_value());
   SurfaceBuffers surf;
   renderSurfacesCpu(scene, surf);

@@ -10,6 +10,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <filesystem>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -83,7 +85,11 @@ struct ViewKey {
 
 }  // namespace
 
-std::string defaultTableCacheDir() { return detail::defaultTableCacheDir().string(); }
+std::string defaultTableCacheDir() {
+  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return (std::filesystem::path(x) / "fogbeam").string();
+  if (const char* h = std::getenv("HOME"); h && *h) return (std::filesystem::path(h) / ".cache" / "fogbeam").string();
+  return {};
+}
 
 std::string tableCacheDirFor(std::string_view setting) {
   if (setting == "off") return {};
@@ -412,9 +418,11 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
   }
   if (!st.rayLamps.empty() || !st.pencilLamps.empty()) {
     const bool useMaps = st.fast.moving_lamps == MovingLampPath::Map;
+    // The ray itself only for the lamps evaluated per ray or by the pencil; maps read pixels.
+    const bool needRay = !st.rayLamps.empty() || !useMaps;
     for (std::size_t k = 0; k < n; ++k) {
       const Ray ray{f.cam->position_m,
-                    f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
+                    needRay ? f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])) : Vec3(1, 0, 0),
                     static_cast<double>(px.d[k])};
       double acc[3] = {0.0, 0.0, 0.0};
       for (std::size_t li : st.rayLamps) {

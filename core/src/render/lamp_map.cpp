@@ -10,12 +10,29 @@ namespace fogbeam {
 
 namespace {
 bool powerOfTwo(int v) { return v > 0 && (v & (v - 1)) == 0; }
+// Values are interpolated as log(L·h + ε): the airlight over a surface falls off roughly
+// exponentially with the distance, which bilinear interpolation of L itself follows only on
+// cells a few pixels wide. ε keeps log finite where the lamp is dark (1e-12 cd/m² at h = 1 m).
+constexpr double kEps = 1e-12;
 int levelsFor(int coarse) {
   int l = 1;
   while ((coarse >> (l - 1)) > 1) ++l;
   return l;
 }
 }  // namespace
+
+// ---------------------------------------------------------------------------------------------
+void CellLevels::reset(int levels, int nx0, int ny0) {
+  nx0_ = nx0;
+  ny0_ = ny0;
+  offset_.resize(static_cast<std::size_t>(levels));
+  std::size_t total = 0;
+  for (int l = 0; l < levels; ++l) {
+    offset_[static_cast<std::size_t>(l)] = total;
+    total += across(l) * down(l);
+  }
+  bytes_.assign(total, 0);
+}
 
 // ---------------------------------------------------------------------------------------------
 void DepthEdges::build(const float* distance, int width, int height, int coarse_px, double rel, double far_m,
@@ -61,40 +78,21 @@ void DepthEdges::build(const float* distance, int width, int height, int coarse_
   pool.parallelFor(static_cast<std::size_t>(lh), [r](std::size_t j) { r->row(static_cast<int>(j)); });
   // Cells: the finest (one pixel: its four corner pixels) from the pixels, each coarser level
   // from its four children (their closed areas cover the parent's).
-  offset_.resize(static_cast<std::size_t>(levels_));
-  std::size_t total = 0;
-  for (int l = 0; l < levels_; ++l) {
-    offset_[static_cast<std::size_t>(l)] = total;
-    total += (static_cast<std::size_t>(nx0_) << l) * (static_cast<std::size_t>(ny0_) << l);
-  }
-  bits_.assign(total, 0);
+  cells_.reset(levels_, nx0_, ny0_);
   {
     const int l = levels_ - 1;
-    const std::size_t nx = static_cast<std::size_t>(nx0_) << l, ny = static_cast<std::size_t>(ny0_) << l;
-    std::uint8_t* out = bits_.data() + offset_[static_cast<std::size_t>(l)];
-    for (std::size_t cy = 0; cy < ny; ++cy)
-      for (std::size_t cx = 0; cx < nx; ++cx) {
+    for (std::size_t cy = 0; cy < cells_.down(l); ++cy)
+      for (std::size_t cx = 0; cx < cells_.across(l); ++cx) {
         const std::uint8_t* p = pixel_.data() + cy * static_cast<std::size_t>(lw) + cx;
-        out[cy * nx + cx] = static_cast<std::uint8_t>(p[0] | p[1] | p[lw] | p[lw + 1]);
+        cells_.at(l, static_cast<int>(cx), static_cast<int>(cy)) = static_cast<std::uint8_t>(p[0] | p[1] | p[lw] | p[lw + 1]);
       }
   }
-  for (int l = levels_ - 2; l >= 0; --l) {
-    const std::size_t nx = static_cast<std::size_t>(nx0_) << l, ny = static_cast<std::size_t>(ny0_) << l;
-    const std::uint8_t* in = bits_.data() + offset_[static_cast<std::size_t>(l) + 1];
-    std::uint8_t* out = bits_.data() + offset_[static_cast<std::size_t>(l)];
-    const std::size_t cnx = 2 * nx;
-    for (std::size_t cy = 0; cy < ny; ++cy)
-      for (std::size_t cx = 0; cx < nx; ++cx) {
-        const std::uint8_t* c = in + 2 * cy * cnx + 2 * cx;
-        out[cy * nx + cx] = static_cast<std::uint8_t>(c[0] | c[1] | c[cnx] | c[cnx + 1]);
-      }
-  }
-}
-
-bool DepthEdges::cell(int level, int cx, int cy) const noexcept {
-  const std::size_t nx = static_cast<std::size_t>(nx0_) << level;
-  return bits_[offset_[static_cast<std::size_t>(level)] + static_cast<std::size_t>(cy) * nx +
-               static_cast<std::size_t>(cx)] != 0;
+  for (int l = levels_ - 2; l >= 0; --l)
+    for (int cy = 0; cy < static_cast<int>(cells_.down(l)); ++cy)
+      for (int cx = 0; cx < static_cast<int>(cells_.across(l)); ++cx)
+        cells_.at(l, cx, cy) = static_cast<std::uint8_t>(cells_.at(l + 1, 2 * cx, 2 * cy) | cells_.at(l + 1, 2 * cx + 1, 2 * cy) |
+                                                         cells_.at(l + 1, 2 * cx, 2 * cy + 1) |
+                                                         cells_.at(l + 1, 2 * cx + 1, 2 * cy + 1));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -105,18 +103,6 @@ Status LampMap::validate(const LampMapOptions& o) {
       !(o.image_guard_px >= 0.0 && o.image_guard_px <= 64.0))
     return Error{"lamp map: need 0 < tolerance < 1, 0 <= floor_fraction < 1 and 0 <= image_guard_px <= 64"};
   return Ok{};
-}
-
-std::uint8_t& LampMap::flag(int level, int cx, int cy) noexcept {
-  const std::size_t nx = static_cast<std::size_t>(nx0_) << level;
-  return flags_[flagOffset_[static_cast<std::size_t>(level)] + static_cast<std::size_t>(cy) * nx +
-                static_cast<std::size_t>(cx)];
-}
-
-std::uint8_t LampMap::flagAt(int level, int cx, int cy) const noexcept {
-  const std::size_t nx = static_cast<std::size_t>(nx0_) << level;
-  return flags_[flagOffset_[static_cast<std::size_t>(level)] + static_cast<std::size_t>(cy) * nx +
-                static_cast<std::size_t>(cx)];
 }
 
 int LampMap::nodeAt(int X, int Y) const noexcept {
@@ -147,7 +133,7 @@ void LampMap::evaluateNode(std::size_t node) {
   const double x = X + 0.5, y = Y + 0.5;
   const double h = hOf(x, y);
   const double l = pencil_->evaluate(camera_.rayDirection(x, y), d);
-  value_[node] = static_cast<float>(std::log(l * h + eps_));
+  value_[node] = static_cast<float>(std::log(l * h + kEps));
   nodeH_[node] = static_cast<float>(h);
 }
 
@@ -197,13 +183,7 @@ void LampMap::build(const PencilAirlight& pencil, const Camera& camera, const De
   nodeX_.clear();
   nodeY_.clear();
   pending_.clear();
-  flagOffset_.resize(static_cast<std::size_t>(levels_));
-  std::size_t total = 0;
-  for (int l = 0; l < levels_; ++l) {
-    flagOffset_[static_cast<std::size_t>(l)] = total;
-    total += (static_cast<std::size_t>(nx0_) << l) * (static_cast<std::size_t>(ny0_) << l);
-  }
-  flags_.assign(total, 0);
+  split_.reset(levels_, nx0_, ny0_);
 
   // The lamp's image (pixels), for the cells forced to split around it.
   const Vec3 c = glm::transpose(camera.worldFromCamera) * lampRel_;
@@ -214,10 +194,6 @@ void LampMap::build(const PencilAirlight& pencil, const Camera& camera, const De
     image_ = Vec2(pp.x - fp * c.y / c.x, pp.y - fp * c.z / c.x);
   }
 
-  // Values are interpolated as log(L·h + ε): the airlight over a surface falls off roughly
-  // exponentially with the distance, which bilinear interpolation of L itself follows only on
-  // cells a few pixels wide. ε keeps log finite where the lamp is dark (1e-12 cd/m² at h = 1 m).
-  eps_ = 1e-12;
   // Level 0: the coarse lattice.
   for (int j = 0; j <= ny0_; ++j)
     for (int i = 0; i <= nx0_; ++i) addNode(i * s0, j * s0);
@@ -227,7 +203,7 @@ void LampMap::build(const PencilAirlight& pencil, const Camera& camera, const De
   double floorL = 0.0;
   scratch_.clear();
   for (std::size_t n = 0; n < nodeX_.size(); ++n)
-    if (nodeH_[n] > 0.0f) scratch_.push_back((std::exp(static_cast<double>(value_[n])) - eps_) / static_cast<double>(nodeH_[n]));
+    if (nodeH_[n] > 0.0f) scratch_.push_back((std::exp(static_cast<double>(value_[n])) - kEps) / static_cast<double>(nodeH_[n]));
   if (!scratch_.empty()) {
     const std::size_t q = scratch_.size() * 9 / 10;
     std::nth_element(scratch_.begin(), scratch_.begin() + static_cast<std::ptrdiff_t>(q), scratch_.end());
@@ -269,7 +245,7 @@ void LampMap::build(const PencilAirlight& pencil, const Camera& camera, const De
         ++stats_.leaves;
         continue;
       }
-      flag(l, cx, cy) = 1;
+      split_.at(l, cx, cy) = 1;
       // Children at level l + 1: their corners are this cell's corners, centre and edge midpoints.
       addNode(X0 + half, Y0);
       addNode(X0, Y0 + half);
@@ -289,31 +265,25 @@ void LampMap::build(const PencilAirlight& pencil, const Camera& camera, const De
   stats_.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-int LampMap::leafSide(int i, int j) const {
+LampMap::Leaf LampMap::leafOf(int i, int j) const noexcept {
   int s = options_.coarse_px;
   int cx = std::min(i / s, nx0_ - 1), cy = std::min(j / s, ny0_ - 1);
-  for (int l = 0; l + 1 < levels_ && flagAt(l, cx, cy) != 0; ++l) {
+  for (int l = 0; l + 1 < levels_ && split_.at(l, cx, cy) != 0; ++l) {
     s /= 2;
     cx = std::clamp(i / s, 2 * cx, 2 * cx + 1);
     cy = std::clamp(j / s, 2 * cy, 2 * cy + 1);
   }
-  return s;
+  return {cx * s, cy * s, s};
 }
 
+int LampMap::leafSide(int i, int j) const { return leafOf(i, j).s; }
+
 double LampMap::lookup(int i, int j) const {
-  // Down the quadtree to the leaf holding pixel (i, j).
-  int s = options_.coarse_px;
-  int cx = std::min(i / s, nx0_ - 1), cy = std::min(j / s, ny0_ - 1);
-  for (int l = 0; l + 1 < levels_ && flagAt(l, cx, cy) != 0; ++l) {
-    s /= 2;
-    cx = std::clamp(i / s, 2 * cx, 2 * cx + 1);
-    cy = std::clamp(j / s, 2 * cy, 2 * cy + 1);
-  }
-  const int X0 = cx * s, Y0 = cy * s;
+  const auto [X0, Y0, s] = leafOf(i, j);
   const int n00 = nodeAt(X0, Y0);
   if (i == X0 && j == Y0) {
     const double h = static_cast<double>(nodeH_[static_cast<std::size_t>(n00)]);
-    return h > 0.0 ? std::max(0.0, (std::exp(static_cast<double>(value_[static_cast<std::size_t>(n00)])) - eps_) / h) : 0.0;
+    return h > 0.0 ? std::max(0.0, (std::exp(static_cast<double>(value_[static_cast<std::size_t>(n00)])) - kEps) / h) : 0.0;
   }
   const double h = hOf(i + 0.5, j + 0.5);
   if (!(h > 0.0)) return pencil_->evaluate(camera_.rayDirection(i + 0.5, j + 0.5),
@@ -324,7 +294,7 @@ double LampMap::lookup(int i, int j) const {
   const double tx = static_cast<double>(i - X0) / s, ty = static_cast<double>(j - Y0) / s;
   const double a = v(X0, Y0) + tx * (v(X0 + s, Y0) - v(X0, Y0));
   const double b = v(X0, Y0 + s) + tx * (v(X0 + s, Y0 + s) - v(X0, Y0 + s));
-  return std::max(0.0, (std::exp(a + ty * (b - a)) - eps_) / h);
+  return std::max(0.0, (std::exp(a + ty * (b - a)) - kEps) / h);
 }
 
 }  // namespace fogbeam

@@ -9,7 +9,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <system_error>
@@ -152,12 +151,6 @@ std::uint64_t TableKey::hash() const noexcept {
     h = fnv1a(reinterpret_cast<const char*>(&q), sizeof q, h);
   }
   return h;
-}
-
-std::filesystem::path defaultTableCacheDir() {
-  if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::filesystem::path(x) / "fogbeam";
-  if (const char* h = std::getenv("HOME"); h && *h) return std::filesystem::path(h) / ".cache" / "fogbeam";
-  return {};
 }
 
 bool loadLampTables(const std::filesystem::path& dir, const TableKey& key, LampTables& out) {

@@ -62,10 +62,6 @@ struct LampTables {
   double guard[3] = {0.0, 0.0, -1.0};
 };
 
-/// The directory the service and `fogbeam render` use by default: $XDG_CACHE_HOME/fogbeam, else
-/// $HOME/.cache/fogbeam; empty when neither variable is set.
-[[nodiscard]] std::filesystem::path defaultTableCacheDir();
-
 /// Loads the tables stored under `key` into `out` (out.count tables). False on any miss: no
 /// file, another key, another code version, a short or damaged file.
 [[nodiscard]] bool loadLampTables(const std::filesystem::path& dir, const TableKey& key, LampTables& out);

@@ -46,6 +46,28 @@ struct LampMapOptions {
   double image_guard_px = 2.0;
 };
 
+/// One byte per cell of a quadtree over the image, level by level: nx0 × ny0 cells at level 0,
+/// each level twice as fine in x and y. What DepthEdges and LampMap keep per cell.
+class CellLevels {
+ public:
+  /// `levels` levels over nx0 × ny0 coarse cells, every byte 0 (no allocation once grown).
+  void reset(int levels, int nx0, int ny0);
+  [[nodiscard]] std::uint8_t& at(int level, int cx, int cy) noexcept { return bytes_[index(level, cx, cy)]; }
+  [[nodiscard]] std::uint8_t at(int level, int cx, int cy) const noexcept { return bytes_[index(level, cx, cy)]; }
+  /// Cells across at `level`.
+  [[nodiscard]] std::size_t across(int level) const noexcept { return static_cast<std::size_t>(nx0_) << level; }
+  [[nodiscard]] std::size_t down(int level) const noexcept { return static_cast<std::size_t>(ny0_) << level; }
+
+ private:
+  [[nodiscard]] std::size_t index(int level, int cx, int cy) const noexcept {
+    return offset_[static_cast<std::size_t>(level)] + static_cast<std::size_t>(cy) * across(level) +
+           static_cast<std::size_t>(cx);
+  }
+  int nx0_ = 0, ny0_ = 0;
+  std::vector<std::size_t> offset_;  // per level, into bytes_
+  std::vector<std::uint8_t> bytes_;
+};
+
 /// Where a frame's distances are not one smooth surface, per quadtree cell: shared by the maps
 /// of one frame. A pixel is an edge where the second difference of 1/d across it (along x or
 /// y) exceeds `rel` × the largest 1/d involved, unless all three lie beyond `far_m` (the
@@ -57,7 +79,7 @@ class DepthEdges {
   void build(const float* distance, int width, int height, int coarse_px, double rel, double far_m, ThreadPool& pool);
   /// True when some pixel of the closed cell [cx·s, cx·s + s] × [cy·s, cy·s + s] (pixel
   /// indices, s = coarse_px >> level) is an edge.
-  [[nodiscard]] bool cell(int level, int cx, int cy) const noexcept;
+  [[nodiscard]] bool cell(int level, int cx, int cy) const noexcept { return cells_.at(level, cx, cy) != 0; }
   [[nodiscard]] int levels() const noexcept { return levels_; }
   [[nodiscard]] int coarse() const noexcept { return coarse_; }
   [[nodiscard]] int width() const noexcept { return width_; }
@@ -67,8 +89,7 @@ class DepthEdges {
  private:
   const float* distance_ = nullptr;
   int width_ = 0, height_ = 0, coarse_ = 0, levels_ = 0, nx0_ = 0, ny0_ = 0;
-  std::vector<std::size_t> offset_;  // per level, into bits_
-  std::vector<std::uint8_t> bits_;   // one byte per cell
+  CellLevels cells_;                 // 1 where the cell holds an edge pixel
   std::vector<std::uint8_t> pixel_;  // per pixel of the lattice (nx0·s + 1) × (ny0·s + 1)
 };
 
@@ -104,8 +125,11 @@ class LampMap {
   void evaluatePending(ThreadPool& pool);
   void evaluateNode(std::size_t node);
   [[nodiscard]] double hOf(double x, double y) const noexcept;
-  [[nodiscard]] std::uint8_t& flag(int level, int cx, int cy) noexcept;
-  [[nodiscard]] std::uint8_t flagAt(int level, int cx, int cy) const noexcept;
+  /// The leaf cell holding pixel (i, j): its corner (X0, Y0) and side s, pixels.
+  struct Leaf {
+    int X0, Y0, s;
+  };
+  [[nodiscard]] Leaf leafOf(int i, int j) const noexcept;
 
   const PencilAirlight* pencil_ = nullptr;
   const DepthEdges* edges_ = nullptr;
@@ -118,12 +142,10 @@ class LampMap {
   bool imageInFront_ = false;
   std::vector<int> nodeIndex_;          // per lattice point: node index or −1
   std::vector<std::int32_t> nodeX_, nodeY_;
-  std::vector<float> value_;            // per node: log(L · h + eps_), L · h in cd/m² · m
-  double eps_ = 1e-12;
+  std::vector<float> value_;            // per node: log(L · h + ε), L · h in cd/m² · m (lamp_map.cpp)
   std::vector<float> nodeH_;            // per node: h, metres
   std::vector<std::size_t> pending_;
-  std::vector<std::size_t> flagOffset_;  // per level, into flags_
-  std::vector<std::uint8_t> flags_;      // per cell: 0 leaf, 1 split
+  CellLevels split_;                     // per cell: 0 leaf, 1 split
   std::vector<std::int32_t> cells_, nextCells_;  // (cx, cy) pairs of the level being tested
   std::vector<double> scratch_;                  // the coarse nodes' luminance (the floor)
   LampMapStats stats_;
