@@ -136,13 +136,31 @@ struct ChannelRenderer::Impl {
   /// [render] airlight = "gpu": the GL pass computes the airlight; no CPU evaluator, no tables.
   bool gpuAirlight = false;
   std::vector<float> gpuAir;             ///< the GL pass's airlight, 3 per pixel
-  std::shared_ptr<ThreadPool> gpuPool;   ///< the glow/glare passes' pool when there is no CPU evaluator
+  /// Glow, glare and the per-frame airlight evaluators of pending frames (below) run on it; the
+  /// tables' evaluator has its own (a build makes a new one, possibly on another thread).
+  std::shared_ptr<ThreadPool> framePool;
+
+  /// [render] pending_tables = "per-pixel": while the tables for the wanted fog and bending are
+  /// not in use, a frame evaluates the ego lamps (with every other lamp that is on) through the
+  /// moving-lamp path in that fog and bending instead of showing the previous ones or waiting.
+  bool perPixelPending = true;
+  /// Frames rendered so far (render() calls), and the frame at which the running build started:
+  /// with `wait` (lock-step, replay) and per-pixel pending frames, a build is taken at frame
+  /// buildStart + config->table_adopt_frames whatever the machine's speed, so runs repeat.
+  std::int64_t frameIndex = 0;
+  std::int64_t buildStart = 0;
+  /// The key the previous frame wanted, and for how many frames in a row it has been wanted: a
+  /// per-pixel build starts only once a key has held for two frames, so that a fog ramp (a new
+  /// key every frame) does not spend the cores on tables that are stale before they are done.
+  TableKey lastWant;
+  int wantHeld = 0;
+  bool useTables = false;  ///< this frame: the tables' evaluator serves the world and ego lamps
 
   /// Glow and glare ([glow], [glare]), evaluated on each frame's lit scene (its lamp list changes
   /// with traffic and light bits, which LampEffects follows). LampEffects::build takes the fog's
   /// phase (its single-scattering table) from the scene it is given, so it is rebuilt when the
-  /// tables' key (fog, hence phase) changes, and when the evaluator's pool changes (a table
-  /// rebuild makes a new evaluator with its own pool). A rebuild costs a 512-entry CIE table, µs.
+  /// frame's key (fog, hence phase) changes. It runs on framePool. A rebuild costs a 512-entry
+  /// CIE table, µs.
   std::optional<LampEffects> effects;
   TableKey effectsKey;
   const ThreadPool* effectsPool = nullptr;
@@ -181,11 +199,12 @@ struct ChannelRenderer::Impl {
   [[nodiscard]] TableKey wantedTables(const ipc::SimSnapshot& state) const;
   [[nodiscard]] Status updateTables(const ipc::EgoState& ego, const TableKey& want, bool wait);
   [[nodiscard]] Status egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit);
+  void startBuild(const ipc::EgoState& ego, const TableKey& want);
   [[nodiscard]] std::uint32_t trafficLamps(const ipc::SimSnapshot& state, ipc::Clock::time_point now, Scene& traffic,
                                            Scene& lit) const;
   [[nodiscard]] Status renderSurfaces(const Scene& lit, double& gpuAirlightMs);
-  [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out);
-  [[nodiscard]] Status renderEffects(const Scene& lit, RenderedFrame& out, EffectLayers& layers);
+  [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, const Scene& lit, RenderedFrame& out);
+  [[nodiscard]] Status renderEffects(const Scene& lit, const TableKey& key, RenderedFrame& out, EffectLayers& layers);
   void compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out);
 
   Result<AirlightImageEvaluator> buildFor(const Scene& scene) const {
@@ -240,6 +259,8 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->vehicleCamera = channelCamera(config, impl->channel);
   impl->egoPoints = expandRig(config.ego);
   for (const auto& [cls, rig] : config.traffic) impl->trafficPoints.emplace(&rig, expandRig(rig));
+  impl->perPixelPending = config.pending_tables == "per-pixel";
+  impl->framePool = std::make_shared<ThreadPool>(config.threads);
   if (config.effects.render.airlight == AirlightDevice::Gpu) {
     if (!gl) {
       return Error{"[render] airlight = \"gpu\" needs the GL surface pass, and there is none (surface = \"" +
@@ -249,9 +270,6 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
     gpu.pieces = config.effects.render.gpu_pieces;
     if (Status s = gl->setAirlight(gpu); !s) return Error{"[render] airlight = \"gpu\": " + s.error().message};
     impl->gpuAirlight = true;
-    if (config.effects.glow.enabled || config.effects.glare.enabled) {
-      impl->gpuPool = std::make_shared<ThreadPool>(config.threads);
-    }
   }
   return std::unique_ptr<ChannelRenderer>(new ChannelRenderer(std::move(impl)));
 }
@@ -276,13 +294,44 @@ TableKey ChannelRenderer::Impl::wantedTables(const ipc::SimSnapshot& state) cons
   return want;
 }
 
+void ChannelRenderer::Impl::startBuild(const ipc::EgoState& ego, const TableKey& want) {
+  next = want;
+  buildStart = frameIndex;
+  building = std::async(std::launch::async, [this, scene = sceneFor(ego, want)] { return buildFor(scene); });
+}
+
 Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const TableKey& want, bool wait) {
+  ++frameIndex;
   if (gpuAirlight) {
     // Nothing is tabulated on the CPU: every frame renders its own fog and bending at once.
     current = want;
+    useTables = false;
     return Ok{};
   }
-  // A finished background build replaces the tables in use (awaited when `wait`).
+  if (perPixelPending) {
+    // No frame waits for a build and none shows another fog or bending: until the tables for
+    // `want` are in use, render() evaluates the lamps per pixel. One build at a time, in the
+    // background. Free-running takes a build as soon as it is done; lock-step and replay at a
+    // fixed number of frames after it started (waiting there for what is left of it), so that
+    // which frames use tables does not depend on the machine.
+    if (building.valid()) {
+      const bool take = wait ? frameIndex >= buildStart + config->table_adopt_frames
+                             : building.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+      if (take) {
+        auto built = building.get();
+        if (!built) return built.error();
+        eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+        current = next;
+      }
+    }
+    wantHeld = frameIndex > 1 && lastWant == want ? wantHeld + 1 : 1;
+    lastWant = want;
+    if (!(eval && current == want) && !building.valid() && wantHeld >= 2) startBuild(ego, want);
+    useTables = eval && current == want;
+    return Ok{};
+  }
+  // pending_tables = "previous". A finished background build replaces the tables in use
+  // (awaited when `wait`).
   if (building.valid() && (wait || building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
     auto built = building.get();
     if (!built) return built.error();
@@ -298,18 +347,19 @@ Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const Table
       current = want;
     } else if (!building.valid()) {
       // Free-running: one build at a time in the background; frames keep `current` meanwhile.
-      next = want;
-      building = std::async(std::launch::async, [this, scene = sceneFor(ego, want)] { return buildFor(scene); });
+      startBuild(ego, want);
     }
   }
+  useTables = true;
   return Ok{};
 }
 
 Status ChannelRenderer::Impl::egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit) {
   // `scene` holds every world lamp and every ego point lamp, the evaluator's view tables being
   // per lamp: it gets the frame's poses of all of them, and those that are off are switched off
-  // in it, not removed. `lit` gets the ones that are on (world lamps always are).
-  if (eval) {
+  // in it, not removed. `lit` gets the ones that are on (world lamps always are). A frame
+  // without tables (pending) leaves the evaluator as it is: its tables are for another key.
+  if (useTables) {
     if (Status s = eval->setLampPoses(scene); !s) return s;
   }
   const std::size_t worldCount = world.lamps.size();
@@ -317,7 +367,7 @@ Status ChannelRenderer::Impl::egoAndWorldLamps(std::uint32_t lights, const Scene
     // All points of an aperture lamp switch together: by their rig lamp's light bit.
     const std::uint32_t bit = i < worldCount ? 0u : config->ego.lamps[egoPoints[i - worldCount].rig_lamp].light_bit;
     const bool on = bit == 0 || (lights & bit) != 0;
-    if (eval) eval->setLampEnabled(i, on);
+    if (useTables) eval->setLampEnabled(i, on);
     if (on) lit.lamps.push_back(scene.lamps[i]);
   }
   return Ok{};
@@ -360,13 +410,28 @@ Status ChannelRenderer::Impl::renderSurfaces(const Scene& lit, double& gpuAirlig
   return Ok{};
 }
 
-Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out) {
+Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& traffic, const Scene& lit,
+                                             RenderedFrame& out) {
   out.traffic_evaluated = 0;
   if (gpuAirlight) {
     air.width = surface.width;
     air.height = surface.height;
     air.rgb.swap(gpuAir);  // no copy; the GL pass refills the other buffer next frame
     air.evaluated = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);
+    out.airlight_evaluated = air.evaluated;
+    return Ok{};
+  }
+  if (!useTables) {
+    // Tables pending ([render] pending_tables = "per-pixel"): every lamp that is on, the ego's
+    // among them, as a lamp that moves relative to the eye (the pencil, maps or per ray:
+    // [render] moving_lamps), in this frame's fog and bending. Per-lamp tables (profiles, F and
+    // G tables) come from the evaluators' caches; nothing here depends on the view tables.
+    Scene all = scene;
+    all.lamps = lit.lamps;
+    for (SceneLamp& l : all.lamps) l.mount = LampMount::World;
+    auto fe = AirlightImageEvaluator::build(all, method, AirlightOptions{}, framePool, fast);
+    if (!fe) return fe.error();
+    fe->evaluate(all, surface, subsampling, air);
     out.airlight_evaluated = air.evaluated;
     return Ok{};
   }
@@ -386,21 +451,22 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
   return Ok{};
 }
 
-Status ChannelRenderer::Impl::renderEffects(const Scene& lit, RenderedFrame& out, EffectLayers& layers) {
+Status ChannelRenderer::Impl::renderEffects(const Scene& lit, const TableKey& key, RenderedFrame& out,
+                                            EffectLayers& layers) {
   // Glow and glare of the lamps that are on, seen from this frame's eye through its fog, with
   // the surfaces' distances (a lamp behind a surface has neither). The lit scene holds only the
   // lamps that are on; LampEffects leaves the ego's own (vehicle-mounted) lamps out itself.
   out.effects = LampEffectsReport{};
   const SceneEffects& fx = config->effects;
   if (!fx.glow.enabled && !fx.glare.enabled) return Ok{};
-  const std::shared_ptr<ThreadPool>& pool = eval ? eval->pool() : gpuPool;
-  if (!effects || !(effectsKey == current) || effectsPool != pool.get()) {
+  const std::shared_ptr<ThreadPool>& pool = framePool;
+  if (!effects || !(effectsKey == key) || effectsPool != pool.get()) {
     // The old instance lives until the new one is built, so its single-scattering table
     // (cached while someone holds it) is reused when the phase has not changed.
     auto built = LampEffects::build(lit, fx.glow, fx.glare, pool);
     if (!built) return built.error();
     effects = std::move(built).value();
-    effectsKey = current;
+    effectsKey = key;
     effectsPool = pool.get();
   }
   effects->evaluate(lit, surface, glow, glare, out.effects);
@@ -440,11 +506,14 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   if (Status s = m.updateTables(ego, want, wait); !s) return s;
   out.timings.table_wait_ms = ms(tw, Clock::now());
   out.pending = !(m.current == want);
+  // The fog and bending this frame shows: the wanted ones, unless pending_tables = "previous"
+  // keeps the tables' until their build is done.
+  const TableKey& key = m.perPixelPending || m.gpuAirlight ? want : m.current;
 
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
   // bending; `lit` = the lamps that are on (world, ego by light bits, traffic), for the surface
   // pass, the GPU airlight, glow and glare; `traffic` = the traffic lamps that are on.
-  const Scene scene = m.sceneFor(ego, m.current);
+  const Scene scene = m.sceneFor(ego, key);
   Scene lit = scene;
   lit.lamps.clear();
   Scene traffic = scene;
@@ -459,12 +528,12 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
 
   // 4. Airlight.
   const auto tA = Clock::now();
-  if (Status s = m.renderAirlight(scene, traffic, out); !s) return s;
+  if (Status s = m.renderAirlight(scene, traffic, lit, out); !s) return s;
 
   // 5. Glow and glare.
   const auto tF = Clock::now();
   EffectLayers layers;
-  if (Status s = m.renderEffects(lit, out, layers); !s) return s;
+  if (Status s = m.renderEffects(lit, key, out, layers); !s) return s;
 
   // 6. Composite and pack.
   const auto tC = Clock::now();

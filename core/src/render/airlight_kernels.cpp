@@ -61,6 +61,11 @@ PhaseKey keyOf(const Phase& ph, int nK, int nZ, double kMax) {
 std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ, double kMax) {
   static std::mutex mutex;
   static std::map<PhaseKey, std::weak_ptr<const IsoTable>> cache;
+  // The most recent tables stay alive when no evaluator holds them: evaluators built per frame
+  // (traffic, frames while view tables are built) would otherwise build the table (~0.2 s) on
+  // every frame whose longer-lived evaluator has no isotropic lamp.
+  static std::vector<std::shared_ptr<const IsoTable>> recent;
+  constexpr std::size_t kKeepRecent = 4;
   const PhaseKey key = keyOf(phase, nK, nZ, kMax);
   {
     std::lock_guard<std::mutex> lock(mutex);
@@ -107,6 +112,8 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
     }
   std::lock_guard<std::mutex> lock(mutex);
   cache[key] = t;
+  recent.push_back(t);
+  if (recent.size() > kKeepRecent) recent.erase(recent.begin());
   return t;
 }
 

@@ -22,10 +22,13 @@
 //  * rig lamps with an aperture become their point lamps once placed (expandRig, placeRigPoint).
 //
 // Tables that depend on the fog and on the ego lamps' bending angle (quantised to
-// kBendingStepDeg) take seconds to build. With `wait` = false (free-running service) a change
-// starts a build on a background thread and frames go on with the previous fog and bending until
-// it is ready (RenderedFrame::pending says so); with `wait` = true (lock-step, replay) the frame
-// waits, so that a run is deterministic.
+// kBendingStepDeg) take seconds to build; a change starts a build on a background thread
+// (RenderedFrame::pending while it is not in use). With [render] pending_tables = "per-pixel"
+// (the default) frames meanwhile evaluate every lamp that is on per pixel, as moving lamps, in
+// the wanted fog and bending, and nothing waits: free-running (`wait` = false) takes a build when
+// it is done, lock-step and replay (`wait` = true) table_adopt_frames frames after it started,
+// so that a run is deterministic. With "previous", free-running frames keep the previous fog and
+// bending until the build is done, and `wait` = true (and the first frame) waits for it.
 //
 // Thread-safety: one thread drives a ChannelRenderer; distinct renderers are independent.
 #pragma once

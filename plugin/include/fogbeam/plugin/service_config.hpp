@@ -80,6 +80,15 @@ struct ServiceConfig {
   /// Where the ego lamps' view tables are kept between starts: "auto" ($XDG_CACHE_HOME/fogbeam
   /// or ~/.cache/fogbeam), "off", or a directory (tableCacheDirFor, render/airlight_image.hpp).
   std::string table_cache = "auto";
+  /// What frames do while the ego lamps' tables for a new fog or bending angle are built:
+  /// "per-pixel" (the ego lamps go through the moving-lamp path in the new fog and bending; no
+  /// frame waits) or "previous" (free-running keeps the previous fog and bending, lock-step and
+  /// replay wait for the build). docs/service.md, "How a frame is made", step 5.
+  std::string pending_tables = "per-pixel";
+  /// pending_tables = "per-pixel", lock-step and replay: a build started at frame N is used from
+  /// frame N + table_adopt_frames on (waited for there if it is not done), so that the frames a
+  /// run makes do not depend on how fast the machine builds.
+  int table_adopt_frames = 8;
 
   /// [render] airlight, gpu_pieces; [glow]; [glare]: the scene's tables (docs/scene.md), all
   /// off and the CPU airlight by default.

@@ -1,0 +1,176 @@
+// Frames while the ego lamps' view tables are built ([render] pending_tables, frame_renderer.hpp;
+// docs/service.md, "How a frame is made", step 5): with "per-pixel" no frame waits and every frame
+// shows the fog it was asked for, the lamps evaluated per pixel until the tables are taken; in
+// lock-step (wait = true) the tables are taken table_adopt_frames frames after their build
+// started, so runs repeat byte for byte. Small frames (65 × 37) of tests/data/service/small.toml:
+// the road plane, a street lamp, the ego's left low beam, 80 m visibility.
+#include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/plugin/frame_renderer.hpp>
+#include <fogbeam/plugin/service_config.hpp>
+#include <fogbeam/scene/scene.hpp>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+namespace fogbeam::plugin {
+namespace {
+
+constexpr int kWidth = 65, kHeight = 37;
+const std::string kSmall = std::string(FOGBEAM_TEST_DATA_DIR) + "/service/small.toml";
+
+ServiceConfig configWith(std::vector<std::string> settings) {
+  settings.push_back("render.table_cache=\"off\"");  // every build is a build: nothing from ~/.cache
+  auto c = loadServiceConfig(kSmall, settings);
+  EXPECT_TRUE(c) << (c ? "" : c.error().message);
+  if (!c) return {};
+  c->channels.at(0).width = kWidth;
+  c->channels.at(0).height = kHeight;
+  c->channels.at(0).format = "rgba16f-linear";
+  return std::move(c).value();
+}
+
+Scene worldOf(const ServiceConfig& c) {
+  auto w = loadScene(c.scene_path);
+  EXPECT_TRUE(w) << (w ? "" : w.error().message);
+  return w ? std::move(w).value() : Scene{};
+}
+
+/// The ego at the origin looking down +x with its low beam on; the fog `visibility_m` (0: the
+/// configuration's, no environment message).
+ipc::SimSnapshot stateWith(float visibility_m) {
+  ipc::SimSnapshot s;
+  s.ego.stamp.valid = true;
+  s.lamps.value.lights = ipc::light::kLowBeam;
+  s.lamps.stamp.valid = true;
+  if (visibility_m > 0.0f) {
+    s.environment.value.visibility_m = visibility_m;
+    s.environment.value.albedo = 1.0f;
+    s.environment.value.g = 0.85f;
+    s.environment.stamp.valid = true;
+  }
+  return s;
+}
+
+/// Per-pixel luminance (R + G + B) of a 3-per-pixel layer.
+std::vector<double> luminance(const std::vector<float>& layer) {
+  std::vector<double> l(layer.size() / 3);
+  for (std::size_t k = 0; k < l.size(); ++k)
+    l[k] = static_cast<double>(layer[3 * k]) + static_cast<double>(layer[3 * k + 1]) + static_cast<double>(layer[3 * k + 2]);
+  return l;
+}
+
+/// The 95th percentile of |a − b| / b over pixels whose b is above 1 % of b's 99.5th percentile
+/// (the accuracy measure).
+double p95Relative(const std::vector<double>& a, const std::vector<double>& b) {
+  std::vector<double> sorted = b;
+  std::sort(sorted.begin(), sorted.end());
+  const double floor = 0.01 * sorted[static_cast<std::size_t>(0.995 * static_cast<double>(sorted.size() - 1))];
+  std::vector<double> rel;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    if (b[k] > floor) rel.push_back(std::abs(a[k] - b[k]) / b[k]);
+  EXPECT_GT(rel.size(), a.size() / 4);
+  std::sort(rel.begin(), rel.end());
+  return rel[static_cast<std::size_t>(0.95 * static_cast<double>(rel.size() - 1))];
+}
+
+TEST(PendingTables, FramesBeforeTheTablesAreEvaluatedPerPixelAndAgreeWithThem) {
+  const ServiceConfig cfg = configWith({"render.table_adopt_frames=2"});
+  auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+  ASSERT_TRUE(r) << r.error().message;
+  RenderedFrame f1, f2, f3;
+  const ipc::SimSnapshot s = stateWith(0.0f);
+  // Frame 1 does not wait; frame 2 (the fog has held for two frames) starts the build and does
+  // not wait; frame 4 (= 2 + 2) takes the tables, waiting for them if need be.
+  ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, f1));
+  ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, f2));
+  EXPECT_TRUE(f1.pending);
+  EXPECT_TRUE(f2.pending);
+  ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, f3));
+  EXPECT_TRUE(f3.pending);
+  ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, f3));
+  EXPECT_FALSE(f3.pending);
+  EXPECT_EQ(f1.layers.airlight, f2.layers.airlight);  // the same per-pixel frame twice
+  // The per-pixel frame and the tables' frame are two approximations of the same airlight (the
+  // pencil per pixel; view tables at small.toml's coarse 1° step).
+  const double p95 = p95Relative(luminance(f1.layers.airlight), luminance(f3.layers.airlight));
+  std::printf("per-pixel frame against the tables' frame: p95 %.2e\n", p95);
+  EXPECT_LT(p95, 0.01);
+  EXPECT_NE(f1.layers.airlight, f3.layers.airlight);  // two paths indeed
+}
+
+TEST(PendingTables, AFogChangeIsShownAtOnce) {
+  const ServiceConfig cfg = configWith({"render.table_adopt_frames=1"});
+  auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+  ASSERT_TRUE(r) << r.error().message;
+  RenderedFrame f;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE((*r)->render(stateWith(80.0f), ipc::Clock::now(), true, f));
+  ASSERT_FALSE(f.pending);  // 80 m tables in use
+  const std::vector<double> at80 = luminance(f.layers.airlight);
+  RenderedFrame g;
+  ASSERT_TRUE((*r)->render(stateWith(40.0f), ipc::Clock::now(), true, g));
+  EXPECT_TRUE(g.pending);  // 40 m tables building, the frame shows 40 m anyway
+  // Transmittance of the new fog on every surface pixel.
+  const double kt = extinctionFromVisibility(40.0);
+  for (std::size_t k = 0; k < g.layers.distance.size(); ++k) {
+    const double d = g.layers.distance[k];
+    if (std::isfinite(d)) {
+      ASSERT_NEAR(g.layers.transmittance[k], std::exp(-kt * d), 1e-4 * std::exp(-kt * d) + 1e-7);
+    }
+  }
+  // Its airlight is that of a renderer whose tables are for 40 m.
+  const ServiceConfig cfg40 = configWith({"render.table_adopt_frames=1", "fog.visibility_m=40"});
+  auto r40 = ChannelRenderer::create(cfg40, 0, worldOf(cfg40), nullptr);
+  ASSERT_TRUE(r40) << r40.error().message;
+  RenderedFrame h;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE((*r40)->render(stateWith(0.0f), ipc::Clock::now(), true, h));
+  ASSERT_FALSE(h.pending);
+  const std::vector<double> at40 = luminance(h.layers.airlight);
+  const double p95 = p95Relative(luminance(g.layers.airlight), at40);
+  const double p95Old = p95Relative(at80, at40);
+  std::printf("fog 80 -> 40 m, pending frame against 40 m tables: p95 %.2e (80 m frame: %.2e)\n", p95, p95Old);
+  EXPECT_LT(p95, 0.01);
+  EXPECT_GT(p95Old, 0.1);  // the change is one a stale frame would show
+}
+
+TEST(PendingTables, LockStepRunsRepeatByteForByte) {
+  // Fog changes at frames 5 and 10; a build starts once a fog has held for two frames and is
+  // taken 2 frames later: the same frames on every run.
+  const ServiceConfig cfg = configWith({"render.table_adopt_frames=2"});
+  std::vector<std::vector<std::byte>> runs[2];
+  std::vector<bool> pending[2];
+  for (int run = 0; run < 2; ++run) {
+    auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+    ASSERT_TRUE(r) << r.error().message;
+    for (int frame = 1; frame <= 13; ++frame) {
+      const float vis = frame < 5 ? 80.0f : (frame < 10 ? 60.0f : 45.0f);
+      RenderedFrame f;
+      ASSERT_TRUE((*r)->render(stateWith(vis), ipc::Clock::now(), true, f));
+      runs[run].push_back(f.packed);
+      pending[run].push_back(f.pending);
+    }
+  }
+  EXPECT_EQ(runs[0], runs[1]);
+  EXPECT_EQ(pending[0], pending[1]);
+  // 80 m built from frame 2, taken at 4; 60 m wanted from 5, built from 6, taken at 8; 45 m
+  // wanted from 10, built from 11, taken at 13.
+  const std::vector<bool> expected{true, true, true, false, true, true, true, false, false, true, true, true, false};
+  EXPECT_EQ(pending[0], expected);
+}
+
+TEST(PendingTables, PreviousWaitsForTheFirstTables) {
+  const ServiceConfig cfg = configWith({"render.pending_tables=\"previous\""});
+  auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+  ASSERT_TRUE(r) << r.error().message;
+  RenderedFrame f;
+  ASSERT_TRUE((*r)->render(stateWith(0.0f), ipc::Clock::now(), true, f));
+  EXPECT_FALSE(f.pending);
+  EXPECT_GT(f.timings.table_wait_ms, 0.0);
+}
+
+}  // namespace
+}  // namespace fogbeam::plugin
