@@ -1002,6 +1002,20 @@ int runBench(const BenchOptions& options) {
               scene->planes.size(), scene->fog.extinction_per_m, describe(scene->fog.phase).c_str(), road.c_str());
   if (gl) std::printf("  surface   GL: %s (its buffers feed the airlight stages); CPU planes timed too\n", gl->description().c_str());
 
+  if (o.onlyTraffic) {
+    json root;
+    root["traffic"] = trafficStage(o, threads, gl.get());
+    printTraffic(root["traffic"]);
+    if (!o.jsonPath.empty()) {
+      std::ofstream out(o.jsonPath);
+      out << root.dump(2) << '\n';
+      if (!out) {
+        std::fprintf(stderr, "fogbeam bench: %s: cannot write\n", o.jsonPath.c_str());
+        return 1;
+      }
+    }
+    return 0;
+  }
   const auto t0 = Clock::now();
   auto ref = AirlightImageEvaluator::build(*scene, AirlightMethod::Reference, {}, threads);
   auto seed = AirlightImageEvaluator::build(*scene, AirlightMethod::Seed, {}, threads);

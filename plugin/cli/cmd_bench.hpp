@@ -48,6 +48,7 @@ struct BenchOptions {
   // Issue 15: lamps that move relative to the eye (oncoming traffic), on their own scene.
   std::string trafficScene = kBenchTrafficScene;  ///< --traffic-scene: scene with moving measured lamps
   std::string trafficSize = "1280x720";          ///< --traffic-size: WIDTHxHEIGHT of the traffic drive
+  bool onlyTraffic = false;                      ///< --only-traffic: the moving-lamp section alone
 };
 
 /// Runs the benchmark; returns the exit status: 0, 1 when the JSON file cannot be written, 2 on

@@ -153,6 +153,7 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
                   "(default: the shipped config/scenes/traffic.toml)");
   sub->add_option("--traffic-size", o->trafficSize,
                   "size WIDTHxHEIGHT of the moving-lamp section (default 1280x720)");
+  sub->add_flag("--only-traffic", o->onlyTraffic, "run the moving-lamp section alone (its own scene; no other stage)");
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
   sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
       ->check(CLI::Range(10, 1000000));

@@ -2,6 +2,7 @@
 // (airlight_pencil.hpp).
 #include <fogbeam/physics/airlight_pencil.hpp>
 
+#include "airlight_kernel.hpp"
 #include "airlight_tables.hpp"
 
 #include <algorithm>
@@ -36,7 +37,16 @@ Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, cons
   p.options_ = options;
   p.spokeCount_ = options.spokes;
   p.pieces_.resize(static_cast<std::size_t>(options.spokes));
+  if (options.kernel_expansion) {
+    p.projections_.resize(static_cast<std::size_t>(options.spokes));
+    p.kernel_ = detail::kernelTableFor(lamp.medium().phase);
+  }
   p.state_ = std::make_unique<std::atomic<int>[]>(static_cast<std::size_t>(options.spokes));
+  const double half = 0.5 * radians(options.piece_deg);
+  for (int k = 0; k * half <= kPi + 1e-9; ++k) {
+    p.gridCos_.push_back(std::cos(k * half));
+    p.gridSin_.push_back(std::sin(k * half));
+  }
   p.reset(eye);
   return p;
 }
@@ -92,7 +102,15 @@ void PencilAirlight::sampleSpoke(int s) const {
   // towards the side the spoke's rays leave on (azimuth φ), ψ = π points away from the eye.
   const Vec3 u = ev.lampFromWorld_ * (-e0_);
   const Vec3 v = ev.lampFromWorld_ * (std::cos(phi) * e1_ + std::sin(phi) * e2_);
-  auto intensity = [&](double psi) { return profile.intensity(std::cos(psi) * u + std::sin(psi) * v); };
+  const double invHalf = 2.0 / radians(options_.piece_deg);
+  auto intensity = [&](double psi) {
+    const double g = psi * invHalf, k = std::round(g);
+    if (std::abs(g - k) < 1e-9 && k >= 0.0 && k < static_cast<double>(gridCos_.size())) {
+      const std::size_t i = static_cast<std::size_t>(k);
+      return profile.intensity(gridCos_[i] * u + gridSin_[i] * v);
+    }
+    return profile.intensity(std::cos(psi) * u + std::sin(psi) * v);
+  };
 
   // Breakpoints as in the accurate method: the profile's kinks (spot rings, feature lines of
   // tabulated data) and, for tabulated data, the edge of the support cone outside which I = 0.
@@ -153,6 +171,86 @@ void PencilAirlight::sampleSpoke(int s) const {
     }
   }
   mergeSmoothPieces(out);
+  if (kernel_) projectSpoke(s);
+}
+
+namespace {
+const double kGL3x[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+const double kGL3w[3] = {0.5555555555555556, 0.8888888888888888, 0.5555555555555556};
+constexpr int kMaxFunctions = 128;
+}  // namespace
+
+void PencilAirlight::projectSpoke(int s) const {
+  // ∫ β_r I_s over each knot interval (3-point Gauss–Legendre on each piece's share of it:
+  // exact, the product being a quintic), then summed per function and per knot.
+  const detail::PsiBasis& basis = detail::psiBasis();
+  const int m = basis.intervals(), nf = basis.functions();
+  const std::vector<Piece>& pcs = pieces_[static_cast<std::size_t>(s)];
+  thread_local std::vector<double> per;  // per[j · 4 + i] = ∫_{t_j}^{t_{j+1}} β_{j+i} I_s
+  per.assign(static_cast<std::size_t>(m) * 4, 0.0);
+  std::size_t first = 0;
+  for (int j = 0; j < m; ++j) {
+    const double a = basis.knot(j), b = basis.knot(j + 1);
+    while (first < pcs.size() && pcs[first].b <= a) ++first;
+    for (std::size_t q = first; q < pcs.size() && pcs[q].a < b; ++q) {
+      const Piece& pc = pcs[q];
+      const double sa = std::max(a, pc.a), sb = std::min(b, pc.b);
+      if (!(sb > sa)) continue;
+      const double half = 0.5 * (sb - sa), mid = sa + half;
+      for (int g = 0; g < 3; ++g) {
+        const double x = mid + half * kGL3x[g], u = x - pc.m;
+        const double wi = half * kGL3w[g] * (pc.i0 + u * (pc.c1 + u * pc.c2));
+        double bv[4];
+        basis.eval(j, x, bv);
+        for (int i = 0; i < 4; ++i) per[static_cast<std::size_t>(j) * 4 + static_cast<std::size_t>(i)] += wi * bv[i];
+      }
+    }
+  }
+  std::vector<float>& out = projections_[static_cast<std::size_t>(s)];
+  out.assign(static_cast<std::size_t>(nf) + 3 * static_cast<std::size_t>(m + 1), 0.0f);
+  for (int r = 0; r < nf; ++r) {
+    double sum = 0.0;
+    for (int j = std::max(0, r - 3); j <= std::min(m - 1, r); ++j) sum += per[static_cast<std::size_t>(j) * 4 + static_cast<std::size_t>(r - j)];
+    out[static_cast<std::size_t>(r)] = static_cast<float>(sum);
+  }
+  for (int j = 0; j <= m; ++j)
+    for (int i = 0; i < 3; ++i) {
+      const int r = j + i;
+      double sum = 0.0;
+      for (int jj = std::max(0, r - 3); jj < j; ++jj) sum += per[static_cast<std::size_t>(jj) * 4 + static_cast<std::size_t>(r - jj)];
+      out[static_cast<std::size_t>(nf) + 3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(i)] = static_cast<float>(sum);
+    }
+}
+
+double PencilAirlight::expansionIntegral(int s, const float* u, double xEnd) const noexcept {
+  const detail::PsiBasis& basis = detail::psiBasis();
+  const int nf = basis.functions();
+  const float* proj = projections_[static_cast<std::size_t>(s)].data();
+  const int j0 = basis.interval(xEnd);
+  const double t0 = basis.knot(j0);
+  // Functions that end before t_j0 whole, the three that straddle t_j0 up to it, then the four
+  // that live on [t_j0, t_j0+1) from t_j0 to xEnd.
+  double sum = 0.0;
+  for (int r = 0; r < j0; ++r) sum += static_cast<double>(u[r]) * static_cast<double>(proj[r]);
+  const float* left = proj + nf + 3 * j0;
+  for (int i = 0; i < 3; ++i) sum += static_cast<double>(u[j0 + i]) * static_cast<double>(left[i]);
+  if (xEnd > t0) {
+    const std::vector<Piece>& pcs = pieces_[static_cast<std::size_t>(s)];
+    auto it = std::upper_bound(pcs.begin(), pcs.end(), t0, [](double x, const Piece& p) { return x < p.b; });
+    for (; it != pcs.end() && it->a < xEnd; ++it) {
+      const double sa = std::max(t0, it->a), sb = std::min(xEnd, it->b);
+      if (!(sb > sa)) continue;
+      const double half = 0.5 * (sb - sa), mid = sa + half;
+      for (int g = 0; g < 3; ++g) {
+        const double x = mid + half * kGL3x[g], d = x - it->m;
+        const double wi = half * kGL3w[g] * (it->i0 + d * (it->c1 + d * it->c2));
+        double bv[4];
+        basis.eval(j0, x, bv);
+        for (int i = 0; i < 4; ++i) sum += wi * bv[i] * static_cast<double>(u[j0 + i]);
+      }
+    }
+  }
+  return sum;
 }
 
 void PencilAirlight::mergeSmoothPieces(std::vector<Piece>& pieces) const {
@@ -238,6 +336,48 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   // The two spokes either side of the ray's azimuth, blended linearly.
   ensureSpoke(sp.s0);
   ensureSpoke(sp.s1);
+  const double tau = kt * distance_;
+  if (kernel_ && tau <= detail::KernelTable::kTauMax) {
+    // The expansion up to its cut, then G-moment product integration from there to each end.
+    const detail::KernelTable::Lookup lk = kernel_->lookup(alpha, tau);
+    const detail::PsiBasis& basis = detail::psiBasis();
+    const int nf = basis.functions();
+    const double cutPsi = basis.knot(lk.cut);
+    const int needed = std::min(nf, basis.interval(std::min(cutPsi, psiEnd)) + 4);
+    float u[kMaxFunctions];
+    for (int r = 0; r < needed; ++r) u[r] = lk.w[0] * lk.row[0][r] + lk.w[1] * lk.row[1][r] + lk.w[2] * lk.row[2][r] + lk.w[3] * lk.row[3][r];
+    for (int r = needed; r < std::min(nf, kMaxFunctions); ++r) u[r] = 0.0f;
+    const double scaleFit = ev.medium().albedo * kt / h * std::exp(-tau);
+    std::size_t firstTail = n;
+    for (std::size_t m = 0; m < n; ++m) {
+      if (!(distances[m] > 0.0)) {
+        out[m] = 0.0;
+        continue;
+      }
+      const double xEnd = std::min(psi[m], cutPsi);
+      out[m] = scaleFit * ((1.0 - sp.t) * expansionIntegral(sp.s0, u, xEnd) + sp.t * expansionIntegral(sp.s1, u, xEnd));
+      if (psi[m] > cutPsi && firstTail == n) firstTail = m;
+    }
+    // The tail holds the light scattered beyond the cut, attenuated at least by M's exponent
+    // there: past e^{−30} it cannot show (M's e^{−τ} is already out of the scale).
+    const double chiCut = cutPsi + alpha;
+    const bool tailCounts =
+        chiCut < kPi && tau * (std::cos(alpha) + std::sin(alpha) * std::tan(0.5 * chiCut) - 1.0) < 30.0;
+    if (!tailCounts) firstTail = n;
+    if (firstTail < n) {
+      double tail[kStack];
+      std::vector<double> tailHeap;
+      double* tl = tail;
+      if (n - firstTail > kStack) {
+        tailHeap.resize(n - firstTail);
+        tl = tailHeap.data();
+      }
+      integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi + firstTail, n - firstTail, tl, cutPsi);
+      const double scale = ev.medium().albedo * kt / h * std::exp(-kt * p);
+      for (std::size_t m = firstTail; m < n; ++m) out[m] += scale * tl[m - firstTail];
+    }
+    return;
+  }
   integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi, n, out);
   const double scale = ev.medium().albedo * kt / h * std::exp(-kt * p);
   for (std::size_t m = 0; m < n; ++m) out[m] = distances[m] > 0.0 ? scale * out[m] : 0.0;
@@ -250,7 +390,7 @@ double PencilAirlight::evaluate(const Vec3& direction, double distance_m) const 
 }
 
 void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights,
-                               const double* psi, std::size_t n, double* out) const {
+                               const double* psi, std::size_t n, double* out, double psiStart) const {
   // ∫ G(k, θ) I(ψ) dθ from the eye (ψ = 0) to each ψ[m], I = (1 − t) I_s0 + t I_s1 with I_s
   // each spoke's quadratic pieces, and G through the exact cumulative moments T_q (product
   // integration, as the accurate method). The walk cuts at both spokes' breakpoints; on each
@@ -261,7 +401,7 @@ void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double 
   const std::vector<Piece>& p0 = pieces_[static_cast<std::size_t>(s0)];
   const std::vector<Piece>& p1 = pieces_[static_cast<std::size_t>(s1)];
   std::size_t next = 0;
-  for (; next < n && psi[next] < 0.0; ++next) out[next] = 0.0;
+  for (; next < n && psi[next] < psiStart; ++next) out[next] = 0.0;
   // The piece of one spoke at ψ = x: its index (or none) and where that state ends.
   struct Cursor {
     const std::vector<Piece>* pieces;
@@ -282,7 +422,7 @@ void PencilAirlight::integrate(int s0, int s1, double t, double psiFoot, double 
     }
   };
   Cursor c0{&p0}, c1{&p1};
-  double sum = 0.0, x = 0.0;
+  double sum = 0.0, x = psiStart;
   bool haveT = false;
   std::array<double, 3> tx{};
   auto value = [](double i0, double k1, double k2, double thetaC, const std::array<double, 3>& ta,

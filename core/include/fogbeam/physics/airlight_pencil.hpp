@@ -19,6 +19,14 @@
 // so that a blend of two spokes costs one pass); quadratic through both ends and the middle.
 // Where I is smooth, neighbouring pieces merge (`merge_tolerance`).
 //
+// With `kernel_expansion` (the default) a ray does not integrate the pieces against G one by
+// one: the rest of eq. (3)'s integrand, which depends only on the ray's angle from the lamp's
+// direction, the optical eye–lamp distance and the phase function, is expanded once per phase
+// function in B-splines along the circle (core/src/physics/airlight_kernel.hpp), each spoke
+// projects its pieces on that basis once, and a ray is one short dot product plus the product
+// integration of the last few degrees before its far end (where that kernel drops too sharply
+// for a fixed basis).
+//
 // Units: metres, radians inside, degrees in options, cd, cd/m².
 // Thread-safety: evaluate() and evaluateCumulative() may run from any number of threads at
 // once; a spoke is sampled by the first thread that needs it (the others wait for it).
@@ -40,7 +48,13 @@ struct PencilOptions {
   /// Neighbouring pieces merge (on a doubling grid) where one quadratic predicts both within
   /// this fraction of the spoke's peak intensity; 0 = never.
   double merge_tolerance = 3e-4;
+  /// Rays through the kernel expansion (above); false: every piece through the G moments.
+  bool kernel_expansion = true;
 };
+
+namespace detail {
+class KernelTable;
+}
 
 class PencilAirlight {
  public:
@@ -56,6 +70,12 @@ class PencilAirlight {
   void reset(const Vec3& eye);
 
   [[nodiscard]] int spokeCount() const noexcept { return spokeCount_; }
+  /// The spoke just below the ray's azimuth about the eye→lamp axis (a ray reads it and the
+  /// next one), or −1 when rays go per ray (the lamp negligible, the eye at the lamp).
+  [[nodiscard]] int spokeOf(const Vec3& direction) const noexcept { return spokesOf(direction).s0; }
+  /// Samples spoke s now if no ray has yet (thread-safe like evaluate()): an image evaluator
+  /// samples the spokes a frame needs on all threads before its rays read them.
+  void prepareSpoke(int s) const { ensureSpoke(s); }
   /// L_m (white light, cd/m²) along the ray from the eye in `direction` (unit) up to each of
   /// `n` ascending distances (metres, +inf allowed), into out[0..n).
   /// Falls back to the evaluator's own evaluateCumulative where the G table ends (k > k_max,
@@ -82,7 +102,10 @@ class PencilAirlight {
   void sampleSpoke(int s) const;
   void mergeSmoothPieces(std::vector<Piece>& pieces) const;
   void integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights, const double* psi,
-                 std::size_t n, double* out) const;
+                 std::size_t n, double* out, double psiStart = 0.0) const;
+  void projectSpoke(int s) const;
+  /// ∫_0^{xEnd} (Σ_r u_r β_r) I_s dψ of spoke s (xEnd within the expansion's range).
+  [[nodiscard]] double expansionIntegral(int s, const float* u, double xEnd) const noexcept;
 
   const AirlightEvaluator* lamp_ = nullptr;
   PencilOptions options_;
@@ -94,6 +117,13 @@ class PencilAirlight {
   // Per spoke: its pieces and its state (0 not sampled, 1 being sampled, 2 ready). Filled
   // lazily from const evaluation calls, hence mutable; the state orders the accesses.
   mutable std::vector<std::vector<Piece>> pieces_;
+  /// Per spoke, with kernel_expansion: ∫_0^π β_r I_s dψ for every basis function r, then for
+  /// every knot t_j the three ∫_0^{t_j} β_{j+i} I_s dψ, i = 0, 1, 2 (the functions that straddle it).
+  mutable std::vector<std::vector<float>> projections_;
+  std::shared_ptr<const detail::KernelTable> kernel_;
+  /// cos and sin of the multiples of piece_deg / 2, where most samples of a spoke fall (ends
+  /// and middles of the grid pieces): sampling saves a sincos per sample.
+  std::vector<double> gridCos_, gridSin_;
   std::unique_ptr<std::atomic<int>[]> state_;
 };
 

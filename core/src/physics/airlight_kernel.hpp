@@ -1,0 +1,98 @@
+// fogbeam — the airlight kernel of one eye–lamp pair expanded in a fixed basis along the
+// lamp's great circles (private; used by PencilAirlight, airlight_pencil.hpp).
+//
+// Within the plane through the eye, the lamp and a view ray (a "spoke"), eq. (3) of Lecocq
+// et al. 2001 reads, with ψ the angle at the lamp from the direction of the eye and γ the
+// ray's angle from the eye→lamp direction (D = |S − O|, τ = K_t D, h = D sin γ, χ = ψ + γ the
+// scattering angle, θ = ψ + γ − π/2):
+//
+//     L(ψd) = Ω K_t e^{−τ} / h · ∫_0^{ψd} M(ψ; γ, τ) I_s(ψ) dψ,
+//     M(ψ; γ, τ) = exp(−τ (cos γ + sin γ tan(χ/2) − 1)) · p(cos χ),
+//
+// (e^{−τ(cos γ + sin γ tan(χ/2))} is the transmittance along lamp → point → eye, at least
+// e^{−τ}). I_s(ψ), the profile along the spoke's circle, is the same for every ray of the spoke;
+// M depends only on the ray's (γ, τ) and the phase function, not on the lamp, its pose or the
+// fog's density beyond τ. So M is expanded once per phase function in cubic B-splines β_r(ψ)
+// on fixed knots (dense at ψ = 0, where the forward peak of p sits when γ is small),
+// M ≈ Σ_r u_r(γ, τ) β_r, tabulated over (γ, τ); each spoke projects its I_s on the basis once
+// (∫ β_r I_s dψ), and a ray costs one short dot product instead of ~50–90 cumulative G-moment
+// look-ups. Near ψ = π − γ (the ray's far end) M falls as e^{−2k/s}, s = π − γ − ψ,
+// k = τ sin γ, a drop no fixed knot spacing resolves for small k; the expansion is therefore
+// fitted and used only up to a knot ψc ≤ π − γ − w, w = min(π − γ, 0.1, 2 √(h k)) (h the
+// widest knot step), and the rest is product-integrated as before.
+//
+// Measured against the per-ray accurate method (prototype, 400 rays of a 60° × 34° view, HG
+// g = 0.85 and fog-mie, 30–300 m visibility, measured low beam oncoming at 8–150 m, behind the
+// eye, and at the driver's own headlamp 2.2 m ahead): the expansion with this tail agrees with
+// exact M to 1e-5 relative; the whole error is the spoke sampling's.
+//
+// Thread-safety: both classes are immutable once built.
+#pragma once
+
+#include <fogbeam/physics/medium.hpp>
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace fogbeam::detail {
+
+/// Cubic B-splines on ψ ∈ [0, π], clamped at both ends; knots from 0.004 rad growing by 1.3×
+/// up to steps of 0.06 rad (~60 functions).
+class PsiBasis {
+ public:
+  PsiBasis();
+  [[nodiscard]] int intervals() const noexcept { return static_cast<int>(knots_.size()) - 1; }
+  [[nodiscard]] int functions() const noexcept { return intervals() + 3; }
+  [[nodiscard]] double knot(int j) const noexcept { return knots_[static_cast<std::size_t>(j)]; }
+  [[nodiscard]] double widestStep() const noexcept { return widest_; }
+  /// The interval j with knot(j) ≤ ψ < knot(j + 1), clamped to [0, intervals() − 1].
+  [[nodiscard]] int interval(double psi) const noexcept;
+  /// The values at ψ of the four functions j, j + 1, j + 2, j + 3 that live on interval j.
+  void eval(int j, double psi, double b[4]) const noexcept;
+
+ private:
+  void deBoor(int j, double psi, double b[4]) const noexcept;
+
+  std::vector<double> knots_;   // t_0 = 0 < … < t_m = π
+  std::vector<double> padded_;  // three 0s, the knots, three πs
+  std::vector<double> invStep_; // 1 / (t_{j+1} − t_j)
+  // On interval j the four functions are cubics in s = (ψ − t_j)/(t_{j+1} − t_j):
+  // poly_[(j · 4 + i) · 4 + p] is the coefficient of s^p of function j + i.
+  std::vector<double> poly_;
+  double widest_ = 0.0;
+};
+
+/// The one basis every table and spoke uses.
+[[nodiscard]] const PsiBasis& psiBasis();
+
+/// u_r(γ, τ) of M above, per phase function, on γ ∈ [0, π] (asinh axis, dense at 0) × τ ∈
+/// [0, kTauMax] (log1p axis); bilinear.
+class KernelTable {
+ public:
+  /// Beyond this optical eye–lamp distance a lamp's airlight is below e^{−50} of its
+  /// intensity: rays fall back to product integration (which also covers them).
+  static constexpr double kTauMax = 50.0;
+  explicit KernelTable(const Phase& phase);
+
+  struct Lookup {
+    const float* row[4];  ///< the four nodes' coefficient rows (functions() floats each)
+    float w[4];           ///< their bilinear weights
+    int cut;              ///< the expansion holds on [0, knot(cut)] (the smallest of the four nodes')
+  };
+  [[nodiscard]] Lookup lookup(double gamma, double tau) const noexcept;
+  [[nodiscard]] std::size_t bytes() const noexcept { return coef_.size() * sizeof(float) + cut_.size() * sizeof(int); }
+  /// M of the header, for tests.
+  [[nodiscard]] static double kernel(const Phase& phase, double psi, double gamma, double tau) noexcept;
+
+ private:
+  int nG_ = 0, nT_ = 0, r_ = 0;
+  std::vector<float> coef_;  // [(iγ · nT + iτ) · R + r]
+  std::vector<int> cut_;     // [iγ · nT + iτ]
+};
+
+/// The table of `phase`, built on first use (~0.5 s on 2 cores) and shared while someone holds
+/// it (the most recent few are kept).
+[[nodiscard]] std::shared_ptr<const KernelTable> kernelTableFor(const Phase& phase);
+
+}  // namespace fogbeam::detail
