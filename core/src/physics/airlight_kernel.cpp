@@ -73,6 +73,10 @@ PsiBasis::PsiBasis() {
   // Each function is one cubic per interval: its coefficients from its values at s = 0, ⅓, ⅔, 1
   // (the inverse of that Vandermonde matrix, exact), so that eval() needs no division.
   const int m = intervals();
+  for (double t : knots_) {
+    knotCos_.push_back(std::cos(t));
+    knotSin_.push_back(std::sin(t));
+  }
   invStep_.resize(static_cast<std::size_t>(m));
   poly_.assign(static_cast<std::size_t>(m) * 16, 0.0);
   for (int j = 0; j < m; ++j) {

@@ -46,6 +46,8 @@ class PsiBasis {
   [[nodiscard]] int functions() const noexcept { return intervals() + 3; }
   [[nodiscard]] double knot(int j) const noexcept { return knots_[static_cast<std::size_t>(j)]; }
   [[nodiscard]] double widestStep() const noexcept { return widest_; }
+  [[nodiscard]] double knotCos(int j) const noexcept { return knotCos_[static_cast<std::size_t>(j)]; }
+  [[nodiscard]] double knotSin(int j) const noexcept { return knotSin_[static_cast<std::size_t>(j)]; }
   /// The interval j with knot(j) ≤ ψ < knot(j + 1), clamped to [0, intervals() − 1].
   [[nodiscard]] int interval(double psi) const noexcept;
   /// The values at ψ of the four functions j, j + 1, j + 2, j + 3 that live on interval j.
@@ -57,6 +59,7 @@ class PsiBasis {
   std::vector<double> knots_;   // t_0 = 0 < … < t_m = π
   std::vector<double> padded_;  // three 0s, the knots, three πs
   std::vector<double> invStep_; // 1 / (t_{j+1} − t_j)
+  std::vector<double> knotCos_, knotSin_;
   // On interval j the four functions are cubics in s = (ψ − t_j)/(t_{j+1} − t_j):
   // poly_[(j · 4 + i) · 4 + p] is the coefficient of s^p of function j + i.
   std::vector<double> poly_;

@@ -136,40 +136,94 @@ void PencilAirlight::sampleSpoke(int s) const {
   const double cosSupport = std::cos(profile.supportHalfAngle());
   const double maxWidth = radians(options_.piece_deg);
   out.clear();
-  std::vector<double> cuts;
+  auto emit = [&](double pa, double pb, double iA, double iM, double iB) {
+    const double hw = 0.5 * (pb - pa);
+    Piece pc{pa, pb, 0.5 * (pa + pb), iM, 0.0, 0.0};
+    if (hw > 1e-12) {
+      pc.c1 = (iB - iA) / (2 * hw);
+      pc.c2 = (iA - 2 * iM + iB) / (2 * hw * hw);
+    }
+    out.push_back(pc);
+  };
+  // Pass 1: the live intervals between breakpoints, cut into cells of a coarse grid aligned at
+  // 0 (kCoarse × piece_deg, shared by every spoke), with I at every cut; their largest value
+  // sets the spoke's tolerance. Ends just inside the interval: at a kink I is continuous for
+  // spot edges, tabulated data may drop to 0 at the edge of its range (as in the accurate
+  // method).
+  constexpr int kCoarse = 8;
+  const double coarse = kCoarse * maxWidth;
+  struct Cell {
+    double c, a, b;   // the grid cell [c, c + coarse] and the interval [a, b] it lies in
+    double iLo, iHi;  // I at max(a, c) and at min(b, c + coarse)
+  };
+  thread_local std::vector<Cell> cells;
+  cells.clear();
+  double peak = 0.0;
   for (std::size_t i = 1; i < bp.size(); ++i) {
     const double a = bp[i - 1], b = bp[i];
     if (b - a < 1e-13) continue;
     const double mid = 0.5 * (a + b);
     const bool live = tabulated ? (std::cos(mid) * u.x + std::sin(mid) * v.x) >= cosSupport : intensity(mid) > 0.0;
     if (!live) continue;
-    // Ends just inside the interval: at a kink I is continuous for spot edges, tabulated data
-    // may drop to 0 at the edge of its range (as in the accurate method).
-    // Pieces cut at the multiples of `piece_deg` shared by every spoke, so that two spokes'
-    // pieces mostly coincide and a ray blends them without extra G lookups (integrate()).
     const double ia = intensity(a + 1e-12 * (b - a)), ib = intensity(b - 1e-12 * (b - a));
-    const bool constant = !tabulated && ia == ib && ia == intensity(mid);  // spot: between rings
-    cuts.clear();
-    cuts.push_back(a);
-    if (!constant)
-      for (double g = (std::floor(a / maxWidth) + 1.0) * maxWidth; g < b - 1e-9; g += maxWidth) cuts.push_back(g);
-    cuts.push_back(b);
+    peak = std::max({peak, std::abs(ia), std::abs(ib)});
+    if (!tabulated && ia == ib && ia == intensity(mid)) {  // spot: constant between its rings
+      emit(a, b, ia, ia, ib);
+      continue;
+    }
     double iPrev = ia;
-    const int pieces = static_cast<int>(cuts.size()) - 1;
-    for (int k = 0; k < pieces; ++k) {
-      const double pa = cuts[static_cast<std::size_t>(k)], pb = cuts[static_cast<std::size_t>(k) + 1], pm = 0.5 * (pa + pb);
-      const double hw = 0.5 * (pb - pa);
-      const double im = intensity(pm);
-      const double iNext = k + 1 == pieces ? ib : intensity(pb);
-      Piece pc{pa, pb, pm, im, 0.0, 0.0};
-      if (hw > 1e-12) {
-        pc.c1 = (iNext - iPrev) / (2 * hw);
-        pc.c2 = (iPrev - 2 * im + iNext) / (2 * hw * hw);
-      }
-      out.push_back(pc);
-      iPrev = iNext;
+    for (double c = std::floor(a / coarse + 1e-12) * coarse; c < b - 1e-13; c += coarse) {
+      const double hi = std::min(b, c + coarse);
+      if (hi - std::max(a, c) < 1e-13) continue;
+      const double iHi = hi >= b ? ib : intensity(hi);
+      peak = std::max(peak, std::abs(iHi));
+      cells.push_back(Cell{c, a, b, iPrev, iHi});
+      iPrev = iHi;
     }
   }
+  // Pass 2: each cell top-down on its dyadic grid. A whole cell wider than piece_deg stays one
+  // quadratic when that quadratic (through its ends and middle) predicts I at its quarter
+  // points within merge_tolerance × the spoke's peak, else its halves are refined in turn
+  // (their middles are those quarter points); cells cut by a breakpoint split down to
+  // piece_deg. Where I is smooth a cell costs 4 samples instead of 2 per piece_deg: most of a
+  // spoke's cost is its samples (a profile look-up each: atan2, asin, two bucket searches).
+  const double tol = options_.merge_tolerance > 0.0 ? options_.merge_tolerance * peak : -1.0;
+  auto refine = [&](auto& self, double c, double w, double a, double b, double iLo, double iHi, double knownMid) -> void {
+    const double lo = std::max(a, c), hi = std::min(b, c + w);
+    if (hi - lo < 1e-13) return;
+    const double m = c + 0.5 * w;
+    if (w <= maxWidth * (1.0 + 1e-9)) {
+      const double pm = 0.5 * (lo + hi);
+      emit(lo, hi, iLo, lo == c && hi == c + w && !std::isnan(knownMid) ? knownMid : intensity(pm), iHi);
+      return;
+    }
+    if (lo == c && hi == c + w) {
+      const double im = std::isnan(knownMid) ? intensity(m) : knownMid;
+      const double q1 = intensity(c + 0.25 * w), q3 = intensity(c + 0.75 * w);
+      const double p1 = (3.0 * iLo + 6.0 * im - iHi) / 8.0, p3 = (-iLo + 6.0 * im + 3.0 * iHi) / 8.0;
+      if (std::abs(p1 - q1) <= tol && std::abs(p3 - q3) <= tol) {
+        emit(lo, hi, iLo, im, iHi);
+        return;
+      }
+      self(self, c, 0.5 * w, a, b, iLo, im, q1);
+      self(self, m, 0.5 * w, a, b, im, iHi, q3);
+      return;
+    }
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    if (m <= lo) {
+      self(self, m, 0.5 * w, a, b, iLo, iHi, nan);
+    } else if (m >= hi) {
+      self(self, c, 0.5 * w, a, b, iLo, iHi, nan);
+    } else {
+      const double im = intensity(m);
+      self(self, c, 0.5 * w, a, b, iLo, im, nan);
+      self(self, m, 0.5 * w, a, b, im, iHi, nan);
+    }
+  };
+  for (const Cell& cell : cells)
+    refine(refine, cell.c, coarse, cell.a, cell.b, cell.iLo, cell.iHi, std::numeric_limits<double>::quiet_NaN());
+  // Spot intervals where I is constant were emitted in pass 1, before the cells: order by ψ.
+  std::sort(out.begin(), out.end(), [](const Piece& x, const Piece& y) { return x.a < y.a; });
   mergeSmoothPieces(out);
   if (kernel_) projectSpoke(s);
 }
@@ -230,8 +284,14 @@ double PencilAirlight::expansionIntegral(int s, const float* u, double xEnd) con
   const double t0 = basis.knot(j0);
   // Functions that end before t_j0 whole, the three that straddle t_j0 up to it, then the four
   // that live on [t_j0, t_j0+1) from t_j0 to xEnd.
+  // Eight float partial sums (the compiler keeps them in one vector register): ~60 terms.
+  float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int r = 0;
+  for (; r + 8 <= j0; r += 8)
+    for (int l = 0; l < 8; ++l) acc[l] += u[r + l] * proj[r + l];
+  for (int l = 0; r < j0; ++r, ++l) acc[l] += u[r] * proj[r];
   double sum = 0.0;
-  for (int r = 0; r < j0; ++r) sum += static_cast<double>(u[r]) * static_cast<double>(proj[r]);
+  for (float a : acc) sum += static_cast<double>(a);
   const float* left = proj + nf + 3 * j0;
   for (int i = 0; i < 3; ++i) sum += static_cast<double>(u[j0 + i]) * static_cast<double>(left[i]);
   if (xEnd > t0) {
@@ -360,9 +420,10 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
     }
     // The tail holds the light scattered beyond the cut, attenuated at least by M's exponent
     // there: past e^{−30} it cannot show (M's e^{−τ} is already out of the scale).
-    const double chiCut = cutPsi + alpha;
-    const bool tailCounts =
-        chiCut < kPi && tau * (std::cos(alpha) + std::sin(alpha) * std::tan(0.5 * chiCut) - 1.0) < 30.0;
+    // tan(χ/2) = sin χ / (1 + cos χ), χ = ψc + α, from the knot's cos and sin: no trigonometry.
+    const double sinChi = basis.knotSin(lk.cut) * c + basis.knotCos(lk.cut) * sa;
+    const double cosChi = basis.knotCos(lk.cut) * c - basis.knotSin(lk.cut) * sa;
+    const bool tailCounts = 1.0 + cosChi > 1e-12 && tau * (c + sa * sinChi / (1.0 + cosChi) - 1.0) < 30.0;
     if (!tailCounts) firstTail = n;
     if (firstTail < n) {
       double tail[kStack];
