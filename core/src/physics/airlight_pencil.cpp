@@ -159,13 +159,20 @@ void PencilAirlight::sampleSpoke(int s) const {
   thread_local std::vector<Cell> cells;
   cells.clear();
   double peak = 0.0;
+  // I is continuous across a feature kink or a spot ring (a kink, not a step): the next live
+  // interval starts with the value this one ended with. Not across the support cone's edge,
+  // where tabulated data may drop to 0, but beyond that edge nothing is live.
+  double lastEnd = -1.0, lastValue = 0.0;
   for (std::size_t i = 1; i < bp.size(); ++i) {
     const double a = bp[i - 1], b = bp[i];
     if (b - a < 1e-13) continue;
     const double mid = 0.5 * (a + b);
     const bool live = tabulated ? (std::cos(mid) * u.x + std::sin(mid) * v.x) >= cosSupport : intensity(mid) > 0.0;
     if (!live) continue;
-    const double ia = intensity(a + 1e-12 * (b - a)), ib = intensity(b - 1e-12 * (b - a));
+    const double ia = a == lastEnd ? lastValue : intensity(a + 1e-12 * (b - a));
+    const double ib = intensity(b - 1e-12 * (b - a));
+    lastEnd = b;
+    lastValue = ib;
     peak = std::max({peak, std::abs(ia), std::abs(ib)});
     if (!tabulated && ia == ib && ia == intensity(mid)) {  // spot: constant between its rings
       emit(a, b, ia, ia, ib);
