@@ -88,7 +88,7 @@ struct ServiceConfig {
   /// pending_tables = "per-pixel", lock-step and replay: a build started at frame N is used from
   /// frame N + table_adopt_frames on (waited for there if it is not done), so that the frames a
   /// run makes do not depend on how fast the machine builds.
-  int table_adopt_frames = 8;
+  int table_adopt_frames = 60;
 
   /// [render] airlight, gpu_pieces; [glow]; [glare]: the scene's tables (docs/scene.md), all
   /// off and the CPU airlight by default.
