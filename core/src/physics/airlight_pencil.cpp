@@ -387,7 +387,6 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   const double alpha = std::atan2(sa, c);
   const double psiFoot = kHalfPi - alpha;   // ψ of the foot of the perpendicular: θ = ψ − ψF
   const double psiEnd = kPi - alpha;        // ψ at infinity along the ray
-  const detail::GMomentTable::KWeights kw = g.kWeights(kt * h);
   // ψ of each distance (θ = atan((d − p)/h), eq. 3), ascending; one per call in the image path,
   // more (on the heap beyond 64) from tests.
   constexpr std::size_t kStack = 64;
@@ -440,12 +439,14 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
         tailHeap.resize(n - firstTail);
         tl = tailHeap.data();
       }
+      const detail::GMomentTable::KWeights kw = g.kWeights(kt * h);
       integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi + firstTail, n - firstTail, tl, cutPsi);
       const double scale = ev.medium().albedo * kt / h * std::exp(-kt * p);
       for (std::size_t m = firstTail; m < n; ++m) out[m] += scale * tl[m - firstTail];
     }
     return;
   }
+  const detail::GMomentTable::KWeights kw = g.kWeights(kt * h);
   integrate(sp.s0, sp.s1, sp.t, psiFoot, psiEnd, &kw, psi, n, out);
   const double scale = ev.medium().albedo * kt / h * std::exp(-kt * p);
   for (std::size_t m = 0; m < n; ++m) out[m] = distances[m] > 0.0 ? scale * out[m] : 0.0;
