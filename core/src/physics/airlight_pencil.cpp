@@ -14,6 +14,8 @@
 namespace fogbeam {
 
 namespace {
+// A ray's basis coefficients live on its stack (evaluateCumulative).
+constexpr int kMaxFunctions = 128;
 constexpr double kHalfPi = 0.5 * kPi;
 constexpr double kTwoPi = 2.0 * kPi;
 // As in airlight.cpp: beyond this optical eye–lamp distance the airlight underflows.
@@ -37,7 +39,7 @@ Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, cons
   p.options_ = options;
   p.spokeCount_ = options.spokes;
   p.pieces_.resize(static_cast<std::size_t>(options.spokes));
-  if (options.kernel_expansion) {
+  if (options.kernel_expansion && detail::psiBasis().functions() <= kMaxFunctions) {
     p.projections_.resize(static_cast<std::size_t>(options.spokes));
     p.kernel_ = detail::kernelTableFor(lamp.medium().phase);
   }
@@ -238,7 +240,6 @@ void PencilAirlight::sampleSpoke(int s) const {
 namespace {
 const double kGL3x[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
 const double kGL3w[3] = {0.5555555555555556, 0.8888888888888888, 0.5555555555555556};
-constexpr int kMaxFunctions = 128;
 }  // namespace
 
 void PencilAirlight::projectSpoke(int s) const {
