@@ -962,6 +962,20 @@ void printAdditions(const json& a) {
   printTraffic(a["traffic"]);
 }
 
+/// Writes `root` to `path` (nothing when empty) and says so; false, with the reason on stderr,
+/// when it cannot.
+bool writeJson(const json& root, const std::string& path) {
+  if (path.empty()) return true;
+  std::ofstream out(path);
+  out << root.dump(2) << '\n';
+  if (!out) {
+    std::fprintf(stderr, "fogbeam bench: %s: cannot write\n", path.c_str());
+    return false;
+  }
+  std::printf("\nwrote %s\n", path.c_str());
+  return true;
+}
+
 }  // namespace
 
 int runBench(const BenchOptions& options) {
@@ -1006,15 +1020,7 @@ int runBench(const BenchOptions& options) {
     json root;
     root["traffic"] = trafficStage(o, threads, gl.get());
     printTraffic(root["traffic"]);
-    if (!o.jsonPath.empty()) {
-      std::ofstream out(o.jsonPath);
-      out << root.dump(2) << '\n';
-      if (!out) {
-        std::fprintf(stderr, "fogbeam bench: %s: cannot write\n", o.jsonPath.c_str());
-        return 1;
-      }
-    }
-    return 0;
+    return writeJson(root, o.jsonPath) ? 0 : 1;
   }
   const auto t0 = Clock::now();
   auto ref = AirlightImageEvaluator::build(*scene, AirlightMethod::Reference, {}, threads);
@@ -1059,16 +1065,7 @@ int runBench(const BenchOptions& options) {
   }
   root["additions"] = benchAdditions(*scene, o, threads, gl.get());
   printAdditions(root["additions"]);
-  if (!o.jsonPath.empty()) {
-    std::ofstream out(o.jsonPath);
-    out << root.dump(2) << '\n';
-    if (!out) {
-      std::fprintf(stderr, "fogbeam bench: %s: cannot write\n", o.jsonPath.c_str());
-      return 1;
-    }
-    std::printf("\nwrote %s\n", o.jsonPath.c_str());
-  }
-  return 0;
+  return writeJson(root, o.jsonPath) ? 0 : 1;
 }
 
 }  // namespace fogbeam::cli

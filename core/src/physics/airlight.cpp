@@ -1,4 +1,5 @@
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/util/shared_cache.hpp>
 
 #include "airlight_tables.hpp"
 
@@ -28,60 +29,34 @@ double tanHalfAngleSum(double theta) {
 }
 
 // ---- caches: tables are shared between evaluators with the same phase or profile ----------
-using PhaseKey = std::tuple<std::size_t, double, int, int, double>;
-PhaseKey phaseKey(const Phase& ph, int a, int b, double c) {
-  double p0 = 0.0;
-  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&ph)) p0 = hg->g;
-  if (const auto* fm = std::get_if<FogMiePhase>(&ph)) p0 = fm->diameter_um;
-  return {ph.index(), p0, a, b, c};
+using PhaseKey = std::tuple<PhaseIdentity, int, int, double>;
+PhaseKey phaseKey(const Phase& ph, int a, int b, double c) { return {phaseIdentity(ph), a, b, c}; }
+
+// make() of a cache, its build time added to `seconds` (only when the cache builds).
+template <class Make>
+auto timed(double& seconds, Make make) {
+  return [&seconds, make]() {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto sp = make();
+    seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return sp;
+  };
 }
 
-// Caches tables by key. `owner` ties an entry to the object it was built from (a profile):
-// an entry whose owner has died is stale even if a new owner reuses the same address.
-template <class T, class Key>
-class TableCache {
- public:
-  template <class Make>
-  std::shared_ptr<const T> get(const Key& key, Make&& make, double& buildSeconds,
-                               std::weak_ptr<const void> owner = {}) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (auto it = map_.find(key); it != map_.end()) {
-      const bool ownerAlive = !it->second.owner.owner_before(owner) && !owner.owner_before(it->second.owner);
-      if (auto sp = it->second.table.lock(); sp && ownerAlive) return sp;
-    }
-    const auto t0 = std::chrono::steady_clock::now();
-    std::shared_ptr<const T> sp = make();
-    buildSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    map_[key] = Entry{sp, owner};
-    // Keep the most recent tables alive even when no evaluator holds them, so that building
-    // evaluators one after another for the same fog (validate, scene reloads) reuses them.
-    recent_.push_back(sp);
-    if (recent_.size() > kKeepRecent) recent_.erase(recent_.begin());
-    return sp;
-  }
-
- private:
-  static constexpr std::size_t kKeepRecent = 8;
-  struct Entry {
-    std::weak_ptr<const T> table;
-    std::weak_ptr<const void> owner;
-  };
-  std::mutex mutex_;
-  std::map<Key, Entry> map_;
-  std::vector<std::shared_ptr<const T>> recent_;
-};
-
-TableCache<detail::GMomentTable, PhaseKey>& gCache() {
-  static TableCache<detail::GMomentTable, PhaseKey> c;
+// Tables shared by every evaluator of the same phase function or profile; the 8 most recent
+// stay alive, so that evaluators built one after another for the same fog (validate, scene
+// reloads) reuse them.
+SharedCache<PhaseKey, detail::GMomentTable>& gCache() {
+  static SharedCache<PhaseKey, detail::GMomentTable> c(8);
   return c;
 }
-TableCache<detail::SeedCoefficients, PhaseKey>& seedCache() {
-  static TableCache<detail::SeedCoefficients, PhaseKey> c;
+SharedCache<PhaseKey, detail::SeedCoefficients>& seedCache() {
+  static SharedCache<PhaseKey, detail::SeedCoefficients> c(8);
   return c;
 }
 using ProfileKey = std::pair<const Profile*, double>;
-TableCache<detail::GreatCircleMoments, ProfileKey>& circleCache() {
-  static TableCache<detail::GreatCircleMoments, ProfileKey> c;
+SharedCache<ProfileKey, detail::GreatCircleMoments>& circleCache() {
+  static SharedCache<ProfileKey, detail::GreatCircleMoments> c(8);
   return c;
 }
 
@@ -150,21 +125,21 @@ Result<AirlightEvaluator> AirlightEvaluator::build(const Lamp& lamp, const Mediu
   double seconds = 0.0;
   if (method == AirlightMethod::Accurate) {
     const PhaseKey key = phaseKey(medium.phase, options.g_table_theta, options.g_table_k, options.g_table_k_max);
-    tables->g = gCache().get(key, [&] {
+    tables->g = gCache().get(key, timed(seconds, [&] {
       return std::make_shared<const detail::GMomentTable>(medium.phase, options.g_table_theta, options.g_table_k,
                                                           options.g_table_k_max);
-    }, seconds);
+    }));
     e.stats_.bytes += tables->g->bytes();
   } else if (method == AirlightMethod::Seed) {
     const PhaseKey key = phaseKey(medium.phase, options.seed_k_nodes, 0, options.g_table_k_max);
-    tables->seed = seedCache().get(key, [&] {
+    tables->seed = seedCache().get(key, timed(seconds, [&] {
       return std::make_shared<const detail::SeedCoefficients>(medium.phase, options.seed_k_nodes, options.g_table_k_max);
-    }, seconds);
+    }));
     e.stats_.bytes += tables->seed->bytes();
     if (!std::holds_alternative<IsotropicProfile>(lamp.profile->model())) {
-      tables->circles = circleCache().get(ProfileKey{lamp.profile.get(), options.seed_circle_step_deg}, [&] {
+      tables->circles = circleCache().get(ProfileKey{lamp.profile.get(), options.seed_circle_step_deg}, timed(seconds, [&] {
         return std::make_shared<const detail::GreatCircleMoments>(*lamp.profile, options.seed_circle_step_deg);
-      }, seconds, std::weak_ptr<const void>(lamp.profile));
+      }), std::weak_ptr<const void>(lamp.profile));
       e.stats_.bytes += tables->circles->bytes();
     }
   }
@@ -426,10 +401,10 @@ double AirlightEvaluator::evaluate(const Ray& ray) const noexcept {
 GMomentTexels gMomentTexels(const Phase& phase, const AirlightOptions& options) {
   double seconds = 0.0;
   const PhaseKey key = phaseKey(phase, options.g_table_theta, options.g_table_k, options.g_table_k_max);
-  const auto g = gCache().get(key, [&] {
+  const auto g = gCache().get(key, timed(seconds, [&] {
     return std::make_shared<const detail::GMomentTable>(phase, options.g_table_theta, options.g_table_k,
                                                         options.g_table_k_max);
-  }, seconds);
+  }));
   GMomentTexels t;
   t.nTheta = g->thetaNodes();
   t.nK = g->kNodes();

@@ -3,13 +3,11 @@
 #include "airlight_kernel.hpp"
 
 #include <fogbeam/physics/math.hpp>
+#include <fogbeam/util/shared_cache.hpp>
 
 #include <algorithm>
 #include <cmath>
-#include <map>
-#include <mutex>
 #include <thread>
-#include <tuple>
 
 namespace fogbeam::detail {
 
@@ -146,9 +144,10 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
   r_ = basis.functions();
   coef_.assign(static_cast<std::size_t>(nG_) * static_cast<std::size_t>(nT_) * static_cast<std::size_t>(r_), 0.0f);
   cut_.assign(static_cast<std::size_t>(nG_) * static_cast<std::size_t>(nT_), 0);
-  const double tS = tauScale();
-  // Node γ spacing so that the last node lands on π.
-  const double gS = gammaAxis(kPi) / (nG_ - 1);
+  // Nodes spaced so that the last γ node lands on π and the last τ node on kTauMax.
+  gScale_ = (nG_ - 1) / gammaAxis(kPi);
+  tScale_ = tauScale();
+  const double gS = 1.0 / gScale_, tS = tScale_;
   // One least-squares fit per node, by row of γ on every core: the normal matrix of cubic
   // B-splines is banded (3 below the diagonal), so a banded Cholesky solves it.
   auto fitRow = [&](int ig) {
@@ -223,8 +222,8 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
 }
 
 KernelTable::Lookup KernelTable::lookup(double gamma, double tau) const noexcept {
-  const double u = std::clamp(gammaAxis(std::clamp(gamma, 0.0, kPi)) * (nG_ - 1) / gammaAxis(kPi), 0.0, nG_ - 1.0);
-  const double v = std::clamp(std::log1p(std::max(tau, 0.0) / kTau0) * tauScale(), 0.0, nT_ - 1.0);
+  const double u = std::clamp(gammaAxis(std::clamp(gamma, 0.0, kPi)) * gScale_, 0.0, nG_ - 1.0);
+  const double v = std::clamp(std::log1p(std::max(tau, 0.0) / kTau0) * tScale_, 0.0, nT_ - 1.0);
   const int ig = std::min(static_cast<int>(u), nG_ - 2), it = std::min(static_cast<int>(v), nT_ - 2);
   const double fu = u - ig, fv = v - it;
   Lookup l{};
@@ -241,26 +240,9 @@ KernelTable::Lookup KernelTable::lookup(double gamma, double tau) const noexcept
 }
 
 std::shared_ptr<const KernelTable> kernelTableFor(const Phase& phase) {
-  using Key = std::tuple<std::size_t, double, double, double>;
-  double a = 0.0, b = 0.0, c = 0.0;
-  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&phase)) a = hg->g;
-  if (const auto* fm = std::get_if<FogMiePhase>(&phase)) {
-    a = fm->diameter_um;
-    b = fm->g_hg;
-    c = fm->g_d;
-  }
-  const Key key{phase.index(), a, b, c};
-  static std::mutex mutex;
-  static std::map<Key, std::weak_ptr<const KernelTable>> cache;
-  static std::vector<std::shared_ptr<const KernelTable>> recent;  // kept while fogs alternate
-  std::lock_guard<std::mutex> lock(mutex);  // one build at a time; others wait for it
-  if (auto it = cache.find(key); it != cache.end())
-    if (auto sp = it->second.lock()) return sp;
-  auto t = std::make_shared<const KernelTable>(phase);
-  cache[key] = t;
-  recent.push_back(t);
-  if (recent.size() > 4) recent.erase(recent.begin());
-  return t;
+  // The 4 most recent stay alive while fogs alternate; one build at a time, the others wait.
+  static SharedCache<PhaseIdentity, KernelTable> cache(4);
+  return cache.get(phaseIdentity(phase), [&] { return std::make_shared<const KernelTable>(phase); });
 }
 
 }  // namespace fogbeam::detail

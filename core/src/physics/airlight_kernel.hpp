@@ -90,6 +90,7 @@ class KernelTable {
 
  private:
   int nG_ = 0, nT_ = 0, r_ = 0;
+  double gScale_ = 0.0, tScale_ = 0.0;  // node index per unit of the γ and τ axes (lookup())
   std::vector<float> coef_;  // [(iγ · nT + iτ) · R + r]
   std::vector<int> cut_;     // [iγ · nT + iτ]
 };

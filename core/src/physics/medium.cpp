@@ -44,6 +44,17 @@ Result<Phase> makeFogMie(double d) {
   return Phase{f};
 }
 
+PhaseIdentity phaseIdentity(const Phase& phase) noexcept {
+  double a = 0.0, b = 0.0, c = 0.0;
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&phase)) a = hg->g;
+  if (const auto* fm = std::get_if<FogMiePhase>(&phase)) {
+    a = fm->diameter_um;
+    b = fm->g_hg;
+    c = fm->g_d;
+  }
+  return {phase.index(), a, b, c};
+}
+
 double evalPhase(const Phase& phase, double cosAlpha) noexcept {
   return std::visit(
       Overloaded{

@@ -1,6 +1,7 @@
 // fogbeam — the airlight tables of the image fast path and their scalar definitions
 // (airlight_kernels.hpp). The SIMD versions are in airlight_kernels_simd.cpp.
 #include <fogbeam/render/airlight_kernels.hpp>
+#include <fogbeam/util/shared_cache.hpp>
 
 #include <boost/math/quadrature/gauss.hpp>
 #include <boost/math/quadrature/gauss_kronrod.hpp>
@@ -9,8 +10,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <map>
-#include <mutex>
 #include <tuple>
 
 namespace fogbeam::kernels {
@@ -44,34 +43,19 @@ void cell(double g, int n, int& i, double& t) {
   t = gc - fl;
 }
 
-using PhaseKey = std::tuple<std::size_t, double, double, double, int, int, double>;
-PhaseKey keyOf(const Phase& ph, int nK, int nZ, double kMax) {
-  double a = 0.0, b = 0.0, c = 0.0;
-  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&ph)) a = hg->g;
-  if (const auto* fm = std::get_if<FogMiePhase>(&ph)) {
-    a = fm->diameter_um;
-    b = fm->g_hg;
-    c = fm->g_d;
-  }
-  return {ph.index(), a, b, c, nK, nZ, kMax};
-}
+using PhaseKey = std::tuple<PhaseIdentity, int, int, double>;
 
 }  // namespace
 
 std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ, double kMax) {
-  static std::mutex mutex;
-  static std::map<PhaseKey, std::weak_ptr<const IsoTable>> cache;
   // The most recent tables stay alive when no evaluator holds them: evaluators built per frame
   // (traffic, frames while view tables are built) would otherwise build the table (~0.2 s) on
   // every frame whose longer-lived evaluator has no isotropic lamp.
-  static std::vector<std::shared_ptr<const IsoTable>> recent;
-  constexpr std::size_t kKeepRecent = 4;
-  const PhaseKey key = keyOf(phase, nK, nZ, kMax);
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    if (auto it = cache.find(key); it != cache.end())
-      if (auto sp = it->second.lock()) return sp;
-  }
+  static SharedCache<PhaseKey, IsoTable> cache(4);
+  return cache.get(PhaseKey{phaseIdentity(phase), nK, nZ, kMax}, [&] { return build(phase, nK, nZ, kMax); });
+}
+
+std::shared_ptr<const IsoTable> IsoTable::build(const Phase& phase, int nK, int nZ, double kMax) {
   auto t = std::make_shared<IsoTable>();
   t->phase = phase;
   t->nK = nK;
@@ -110,10 +94,6 @@ std::shared_ptr<const IsoTable> IsoTable::get(const Phase& phase, int nK, int nZ
       q[2] = t->data[at + static_cast<std::size_t>(nZ)];
       q[3] = t->data[at + static_cast<std::size_t>(nZ) + 1];
     }
-  std::lock_guard<std::mutex> lock(mutex);
-  cache[key] = t;
-  recent.push_back(t);
-  if (recent.size() > kKeepRecent) recent.erase(recent.begin());
   return t;
 }
 

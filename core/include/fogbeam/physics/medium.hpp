@@ -9,6 +9,7 @@
 #include <fogbeam/util/result.hpp>
 
 #include <string>
+#include <tuple>
 #include <variant>
 
 namespace fogbeam {
@@ -38,6 +39,11 @@ using Phase = std::variant<IsotropicPhase, HenyeyGreensteinPhase, FogMiePhase>;
 [[nodiscard]] Result<Phase> makeFogMie(double diameter_um);
 /// Builds an HG phase; g must lie in (−1, 1).
 [[nodiscard]] Result<Phase> makeHenyeyGreenstein(double g);
+
+/// What identifies a phase function as a key of table caches: its kind (the variant's index),
+/// then HG g or the fog-mie diameter (µm), then fog-mie's derived g_hg and g_d (0 otherwise).
+using PhaseIdentity = std::tuple<std::size_t, double, double, double>;
+[[nodiscard]] PhaseIdentity phaseIdentity(const Phase& phase) noexcept;
 
 /// p(cos α) in 1/sr; cosAlpha ∈ [−1, 1] with +1 forward.
 [[nodiscard]] double evalPhase(const Phase& phase, double cosAlpha) noexcept;

@@ -75,11 +75,14 @@ struct IsoTable {
   [[nodiscard]] double tailIntegral(double k, double theta) const;
 
   /// Builds (or returns the cached) table for `phase`: nK × nZ nodes, Gauss–Legendre
-  /// integration of G between nodes. About 0.2 s; cached per phase (weakly held). The
+  /// integration of G between nodes. About 0.2 s; cached per phase (shared while held, the 4
+  /// most recent kept; util/shared_cache.hpp). The
   /// defaults keep the table within 1e-4 (p95) of the accurate method's integral: the k axis
   /// sets the error (192 rows: 4e-4, 384: 4e-5 for g = 0.85), ζ beyond 2048 nodes adds nothing.
   [[nodiscard]] static std::shared_ptr<const IsoTable> get(const Phase& phase, int nK = 384, int nZ = 2048,
                                                            double kMax = 100.0);
+  /// A new table, not cached (get() caches what this builds).
+  [[nodiscard]] static std::shared_ptr<const IsoTable> build(const Phase& phase, int nK, int nZ, double kMax);
   /// Scalar F(k, θ) from the table (double arithmetic): the reference for the SIMD kernel.
   [[nodiscard]] double lookup(double k, double q) const noexcept;
 };
