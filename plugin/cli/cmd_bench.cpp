@@ -780,7 +780,7 @@ json nearFieldStage(const Scene& base, const BenchOptions& o, unsigned threads) 
 // above 1 % of the frame's 99.5th percentile of luminance.
 struct TrafficRun {
   StageStats airlight;
-  std::size_t evaluated = 0, mapNodes = 0;
+  std::size_t evaluated = 0, mapNodes = 0, spokes = 0;
   double mapMs = 0.0;
   AirlightImage last;
   Scene lastScene;  // the poses of the last frame
@@ -809,6 +809,7 @@ Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, con
     run.airlight.ms.push_back(msSince(t0));
     run.evaluated = run.last.evaluated;
     run.mapNodes = run.last.map_nodes;
+    run.spokes = run.last.spokes;
     mapMs.push_back(1e3 * run.last.map_seconds);
   }
   run.mapMs = percentile(mapMs, 0.5);
@@ -848,6 +849,7 @@ json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
     return out;
   }
   out["static"] = base->airlight.toJson();
+  out["static"]["evaluated_pixels"] = base->evaluated;
   ThreadPool pool(threads);
   auto reference = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, FastPathOptions{});
   for (MovingLampPath path : {MovingLampPath::Map, MovingLampPath::Pencil}) {
@@ -859,6 +861,7 @@ json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
     json r = run->airlight.toJson();
     r["evaluated_pixels"] = run->evaluated;
     r["map_nodes"] = run->mapNodes;
+    r["spokes"] = run->spokes;
     r["map_ms"] = run->mapMs;
     r["vs_static"] = base->airlight.median() > 0.0 ? run->airlight.median() / base->airlight.median() : 0.0;
     // The last frame's poses, per ray, on sample pixels above 1 % of its 99.5th percentile.
@@ -900,7 +903,11 @@ void printTraffic(const json& t) {
               "every frame (15 m/s, 30 Hz)\n",
               t["scene"].get<std::string>().c_str(), t["width"].get<int>(), t["height"].get<int>(),
               t["surface"].get<std::string>().c_str(), t["lamps"].get<std::size_t>(), t["moving_lamps"].get<std::size_t>());
-  printStage("static frame (no cars)", t["static"]);
+  {
+    char note[100];
+    std::snprintf(note, sizeof note, "  %zu px evaluated", t["static"]["evaluated_pixels"].get<std::size_t>());
+    printStage("static frame (no cars)", t["static"], note);
+  }
   for (const char* k : {"map", "pencil"}) {
     const json& r = t[k];
     char note[200];
@@ -911,6 +918,8 @@ void printTraffic(const json& t) {
     if (std::string(k) == "map")
       std::printf("  %-30s %9.2f ms  (%zu pixels evaluated for the maps)\n", "  of which lamp maps", r["map_ms"].get<double>(),
                   r["map_nodes"].get<std::size_t>());
+    else
+      std::printf("  %-30s %zu a frame\n", "  spokes sampled", r["spokes"].get<std::size_t>());
     printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
   }
 }

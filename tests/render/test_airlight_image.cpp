@@ -202,6 +202,39 @@ TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
   EXPECT_LE(pencilMax, 0.02);
 }
 
+// The adaptive spoke plan (PencilOptions::spoke_tolerance) against every spoke: fewer spokes,
+// the same image within the plan's tolerance, and no worse against the per-ray method.
+TEST(AirlightImage, AdaptiveSpokesAgainstEverySpoke) {
+  Scene scene = nightRoad(128, 72);
+  Scene oncoming = scene;
+  oncoming.lamps = {scene.lamps[2], scene.lamps[3]};
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  auto run = [&](MovingLampPath path, double tolerance, AirlightImage& img) {
+    FastPathOptions f = testFastPath();
+    f.moving_lamps = path;
+    f.pencil_options.spoke_tolerance = tolerance;
+    auto ev = AirlightImageEvaluator::build(oncoming, AirlightMethod::Accurate, {}, 0, f);
+    ASSERT_TRUE(ev.has_value());
+    ev->evaluate(oncoming, surf, SubsamplingOptions{.full = true}, img);
+  };
+  AirlightImage perRay, every, planned;
+  run(MovingLampPath::PerRay, 0.0, perRay);
+  run(MovingLampPath::Pencil, 0.0, every);
+  run(MovingLampPath::Pencil, PencilOptions{}.spoke_tolerance, planned);
+  const auto [planP95, planMax] = imageError(planned, every);
+  const auto [everyRayP95, everyRayMax] = imageError(every, perRay);
+  const auto [planRayP95, planRayMax] = imageError(planned, perRay);
+  std::printf("spokes: %zu planned, %zu every; planned vs every p95 %.2e max %.2e; vs per ray: every p95 %.2e, "
+              "planned p95 %.2e max %.2e\n",
+              planned.spokes, every.spokes, planP95, planMax, everyRayP95, planRayP95, planRayMax);
+  EXPECT_GT(every.spokes, 0u);
+  EXPECT_LT(planned.spokes, every.spokes * 3 / 4);
+  EXPECT_LE(planP95, 1e-3);
+  EXPECT_LE(planRayP95, 1e-3);
+  EXPECT_LE(planRayMax, 0.02);
+}
+
 // An off-axis camera (one channel of a multi-screen cab) sees a window of a larger centred
 // camera with the same pose and focal length; its image must be that window of the centred
 // image. The window holds both vehicle lamps' images, so the view tables (whose window in the

@@ -52,6 +52,11 @@ class PsiBasis {
   [[nodiscard]] int interval(double psi) const noexcept;
   /// The values at ψ of the four functions j, j + 1, j + 2, j + 3 that live on interval j.
   void eval(int j, double psi, double b[4]) const noexcept;
+  /// ∫_0^π β_r dψ = (τ_{r+4} − τ_r) / 4, τ the padded knots (radians): the smoothing width of
+  /// a projection ∫ β_r I dψ, which divided by it is a local mean of I.
+  [[nodiscard]] double integral(int r) const noexcept {
+    return 0.25 * (padded_[static_cast<std::size_t>(r) + 4] - padded_[static_cast<std::size_t>(r)]);
+  }
 
  private:
   void deBoor(int j, double psi, double b[4]) const noexcept;

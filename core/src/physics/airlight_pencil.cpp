@@ -24,8 +24,10 @@ constexpr double kMaxOpticalDistance = 700.0;
 
 Status PencilAirlight::validate(const PencilOptions& options) {
   if (!(options.spokes >= 8) || !(options.piece_deg > 0.0 && options.piece_deg <= 45.0) ||
-      !(options.merge_tolerance >= 0.0 && options.merge_tolerance < 1.0))
-    return Error{"pencil airlight: need spokes >= 8, 0 < piece_deg <= 45 and 0 <= merge_tolerance < 1"};
+      !(options.merge_tolerance >= 0.0 && options.merge_tolerance < 1.0) ||
+      !(options.spoke_tolerance >= 0.0 && options.spoke_tolerance < 1.0))
+    return Error{"pencil airlight: need spokes >= 8, 0 < piece_deg <= 45, 0 <= merge_tolerance < 1 and "
+                 "0 <= spoke_tolerance < 1"};
   return Ok{};
 }
 
@@ -38,12 +40,12 @@ Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, cons
   p.lamp_ = &lamp;
   p.options_ = options;
   p.spokeCount_ = options.spokes;
-  p.pieces_.resize(static_cast<std::size_t>(options.spokes));
+  p.pieces_.resize(static_cast<std::size_t>(p.spokeCount_));
   if (options.kernel_expansion && detail::psiBasis().functions() <= kMaxFunctions) {
-    p.projections_.resize(static_cast<std::size_t>(options.spokes));
+    p.projections_.resize(static_cast<std::size_t>(p.spokeCount_));
     p.kernel_ = detail::kernelTableFor(lamp.medium().phase);
   }
-  p.state_ = std::make_unique<std::atomic<int>[]>(static_cast<std::size_t>(options.spokes));
+  p.state_ = std::make_unique<std::atomic<int>[]>(static_cast<std::size_t>(p.spokeCount_));
   const double half = 0.5 * radians(options.piece_deg);
   for (int k = 0; k * half <= kPi + 1e-9; ++k) {
     p.gridCos_.push_back(std::cos(k * half));
@@ -65,6 +67,49 @@ void PencilAirlight::reset(const Vec3& eye) {
     e2_ = glm::cross(e0_, e1_);
   }
   for (int s = 0; s < spokeCount_; ++s) state_[static_cast<std::size_t>(s)].store(0, std::memory_order_relaxed);
+  leafW_.assign(static_cast<std::size_t>(spokeCount_), 0);
+  leafA_.resize(static_cast<std::size_t>(spokeCount_));
+}
+
+int PencilAirlight::coarseStep() const noexcept {
+  if (!kernel_ || !(options_.spoke_tolerance > 0.0)) return 1;
+  int step = 16;
+  while (step > 1 && spokeCount_ % step != 0) step /= 2;
+  return step;
+}
+
+bool PencilAirlight::middleDiffers(int a, int w) const {
+  if (!kernel_ || w < 2) return true;
+  const auto at = [&](int s) -> const std::vector<float>& {
+    return projections_[static_cast<std::size_t>(((s % spokeCount_) + spokeCount_) % spokeCount_)];
+  };
+  const std::vector<float>& pa = at(a);
+  const std::vector<float>& pm = at(a + w / 2);
+  const std::vector<float>& pb = at(a + w);
+  const detail::PsiBasis& basis = detail::psiBasis();
+  const int nf = basis.functions();
+  // Projections divided by their function's width are local means of I (cd): the test is on
+  // those, so that the dense functions near ψ = 0 weigh as much as the wide ones.
+  auto mean = [&](const std::vector<float>& p, int r) {
+    return static_cast<double>(p[static_cast<std::size_t>(r)]) / basis.integral(r);
+  };
+  double peak = 0.0;
+  for (int r = 0; r < nf; ++r)
+    peak = std::max({peak, std::abs(mean(pa, r)), std::abs(mean(pm, r)), std::abs(mean(pb, r))});
+  const double floor = 0.01 * peak;
+  for (int r = 0; r < nf; ++r) {
+    const double mid = mean(pm, r), blend = 0.5 * (mean(pa, r) + mean(pb, r));
+    if (std::abs(mid - blend) > options_.spoke_tolerance * std::max(std::abs(mid), floor)) return true;
+  }
+  return false;
+}
+
+void PencilAirlight::setLeaf(int a, int w) {
+  for (int k = a; k < a + w; ++k) {
+    const auto i = static_cast<std::size_t>(((k % spokeCount_) + spokeCount_) % spokeCount_);
+    leafA_[i] = a;
+    leafW_[i] = w;
+  }
 }
 
 PencilAirlight::SpokePair PencilAirlight::spokesOf(const Vec3& direction) const noexcept {
@@ -77,6 +122,14 @@ PencilAirlight::SpokePair PencilAirlight::spokesOf(const Vec3& direction) const 
   SpokePair sp;
   sp.s0 = static_cast<int>(fl) % spokeCount_;
   if (sp.s0 < 0) sp.s0 += spokeCount_;
+  const auto k = static_cast<std::size_t>(sp.s0);
+  if (leafW_[k] > 0) {  // a planned leaf: blend its two ends
+    const int a = leafA_[k], w = leafW_[k];
+    sp.t = std::clamp((static_cast<double>(sp.s0) + (u - fl) - a) / w, 0.0, 1.0);
+    sp.s0 = a % spokeCount_;
+    sp.s1 = (a + w) % spokeCount_;
+    return sp;
+  }
   sp.s1 = (sp.s0 + 1) % spokeCount_;
   sp.t = std::clamp(u - fl, 0.0, 1.0);
   return sp;

@@ -131,6 +131,12 @@ struct AirlightImageEvaluator::State {
   std::vector<int> gridSpokes;
   std::vector<char> spokeMask;
   std::vector<std::pair<std::size_t, int>> spokeJobs;
+  // The adaptive plan's open intervals [a, a + w] of pencil q (PencilAirlight::coarseStep()).
+  struct SpokeInterval {
+    std::size_t q;
+    int a, w;
+  };
+  std::vector<SpokeInterval> spokeIntervals, nextIntervals;
   // MovingLampPath::Map: per pencilLamps entry, the lamp's map of this frame, and the frame's
   // distance edges they share.
   std::vector<LampMap> maps;
@@ -1133,13 +1139,18 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
 // frame's rays read, sampled on all threads at once. Left to the rays, neighbouring pixels of
 // one tile need the same spokes at the same time and the other threads wait while one samples
 // them (measured: at 320×180 four oncoming low beams took 100 ms of airlight a frame, 66 ms
-// through the per-lamp maps, which sample one lamp per thread). The spokes read are those
+// through the per-lamp maps, which sample one lamp per thread). The azimuths read are those
 // between the azimuths of neighbouring rays of an 8 px grid (the shorter way round), each
-// widened by one (a ray blends its spoke with the next); a ray between grid rays whose spoke is
-// not among them still samples it itself.
-void sampleSpokes(State& st, const Camera& cam, ThreadPool& pool) {
-  if (st.fast.moving_lamps != MovingLampPath::Pencil) return;
+// widened by one spoke. Over them the pencil's adaptive plan (PencilAirlight::coarseStep):
+// every 16th spoke, then the middles of the intervals whose middle is not the blend of its
+// ends, level by level down to single spokes (measured on the traffic bench at 1280×720: 2 700
+// of the 5 760 spokes the four oncoming low beams read, 40 → 23 ms a frame, the image's error
+// against per ray unchanged). Returns the spokes sampled.
+std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool) {
+  if (st.fast.moving_lamps != MovingLampPath::Pencil) return 0;
+  std::size_t sampled = 0;
   st.spokeJobs.clear();
+  st.spokeIntervals.clear();
   constexpr int kStep = 8;
   const int nx = (cam.width + kStep - 1) / kStep + 1, ny = (cam.height + kStep - 1) / kStep + 1;
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
@@ -1170,14 +1181,55 @@ void sampleSpokes(State& st, const Camera& cam, ThreadPool& pool) {
         if (i + 1 < nx) mark(a, st.gridSpokes[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i + 1)]);
         if (j + 1 < ny) mark(a, st.gridSpokes[static_cast<std::size_t>(j + 1) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i)]);
       }
-    for (int k = 0; k < n; ++k)
-      if (st.spokeMask[static_cast<std::size_t>(k)]) st.spokeJobs.emplace_back(q, k);
+    // The plan: every coarseStep()-th spoke of the coarse intervals that hold an azimuth read
+    // (with coarseStep() = 1 that is every spoke read, as before).
+    const int step = pa.coarseStep();
+    for (int a = 0; a < n; a += step) {
+      bool read = false;
+      for (int k = a; k < a + step && !read; ++k) read = st.spokeMask[static_cast<std::size_t>(k)] != 0;
+      if (read) st.spokeIntervals.push_back({q, a, step});
+    }
   }
-  if (st.spokeJobs.empty()) return;
-  pool.parallelFor(st.spokeJobs.size(), [&](std::size_t k) {
-    const auto& [q, spoke] = st.spokeJobs[k];
-    st.pencils[q]->prepareSpoke(spoke);
-  });
+  // Sampling passes, each on all threads: the coarse intervals' ends, then the middles of the
+  // intervals still open, level by level; an interval whose middle is the blend of its ends
+  // becomes two leaves, one of single spokes always does.
+  auto sampleAll = [&] {
+    if (st.spokeJobs.empty()) return;
+    std::sort(st.spokeJobs.begin(), st.spokeJobs.end());  // interval ends are shared
+    st.spokeJobs.erase(std::unique(st.spokeJobs.begin(), st.spokeJobs.end()), st.spokeJobs.end());
+    sampled += st.spokeJobs.size();
+    pool.parallelFor(st.spokeJobs.size(), [&](std::size_t k) {
+      const auto& [q, spoke] = st.spokeJobs[k];
+      st.pencils[q]->prepareSpoke(spoke);
+    });
+    st.spokeJobs.clear();
+  };
+  for (const auto& iv : st.spokeIntervals) {
+    const int n = st.pencils[iv.q]->spokeCount();
+    st.spokeJobs.emplace_back(iv.q, iv.a);
+    st.spokeJobs.emplace_back(iv.q, (iv.a + iv.w) % n);
+  }
+  while (true) {
+    for (const auto& iv : st.spokeIntervals)
+      if (iv.w > 1) st.spokeJobs.emplace_back(iv.q, iv.a + iv.w / 2);
+    sampleAll();
+    st.nextIntervals.clear();
+    for (const auto& iv : st.spokeIntervals) {
+      PencilAirlight& pa = *st.pencils[iv.q];
+      if (iv.w == 1) {
+        pa.setLeaf(iv.a, 1);
+      } else if (iv.w == 2 || !pa.middleDiffers(iv.a, iv.w)) {
+        pa.setLeaf(iv.a, iv.w / 2);
+        pa.setLeaf(iv.a + iv.w / 2, iv.w / 2);
+      } else {
+        st.nextIntervals.push_back({iv.q, iv.a, iv.w / 2});
+        st.nextIntervals.push_back({iv.q, iv.a + iv.w / 2, iv.w / 2});
+      }
+    }
+    st.spokeIntervals.swap(st.nextIntervals);
+    if (st.spokeIntervals.empty()) break;
+  }
+  return sampled;
 }
 
 // Stage "refresh lamp maps" (MovingLampPath::Map): each enabled moving lamp's own adaptive
@@ -1384,7 +1436,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   out.view_tables_loaded = st.tablesLoaded;
   if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
   refreshPencils(st, lamps_, cf.cam);
-  sampleSpokes(st, cf.cam, *pool_);
+  out.spokes = sampleSpokes(st, cf.cam, *pool_);
   refreshLampMaps(st, cf.cam, surface, opt, scene.fog.extinction_per_m, *pool_);
   out.map_seconds = st.mapSeconds;
   out.map_nodes = st.mapNodes;

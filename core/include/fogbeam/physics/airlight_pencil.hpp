@@ -50,6 +50,11 @@ struct PencilOptions {
   double merge_tolerance = 3e-4;
   /// Rays through the kernel expansion (above); false: every piece through the G moments.
   bool kernel_expansion = true;
+  /// Adaptive spokes (planned by an image evaluator, see coarseStep()): a spoke between two
+  /// sampled ones is left out where it equals their blend within this fraction, per basis
+  /// function, of the larger of its own local mean intensity and 1 % of the spokes' peak.
+  /// 0 = every spoke (needs kernel_expansion; without it every spoke is sampled).
+  double spoke_tolerance = 5e-3;
 };
 
 namespace detail {
@@ -76,6 +81,21 @@ class PencilAirlight {
   /// Samples spoke s now if no ray has yet (thread-safe like evaluate()): an image evaluator
   /// samples the spokes a frame needs on all threads before its rays read them.
   void prepareSpoke(int s) const { ensureSpoke(s); }
+
+  // Adaptive spokes. An image evaluator that knows which azimuths its rays take samples every
+  // coarseStep()-th spoke there, then halves each interval [a, a + w] whose middle spoke is not
+  // the blend of its ends (middleDiffers), down to single spokes, and tells the pencil which
+  // spokes a ray between them blends (setLeaf). Rays in azimuths without a leaf blend their
+  // two neighbouring spokes as before. Where a low beam's cut-off runs along the spokes they
+  // stay 0.25° apart; across smooth light one in 16 or 8 is sampled.
+  /// The coarse spacing, in spokes (a power of two dividing spokeCount(); 1 = no planning).
+  [[nodiscard]] int coarseStep() const noexcept;
+  /// With spokes a, a + w/2 and a + w (mod spokeCount()) sampled: whether the middle one
+  /// differs from the mean of the ends by more than spoke_tolerance (see PencilOptions).
+  [[nodiscard]] bool middleDiffers(int a, int w) const;
+  /// Rays whose azimuth lies in spokes [a, a + w) blend spokes a and a + w (mod spokeCount()),
+  /// both sampled. Not thread-safe: between the sampling passes, before rays read.
+  void setLeaf(int a, int w);
   /// L_m (white light, cd/m²) along the ray from the eye in `direction` (unit) up to each of
   /// `n` ascending distances (metres, +inf allowed), into out[0..n).
   /// Falls back to the evaluator's own evaluateCumulative where the G table ends (k > k_max,
@@ -125,6 +145,9 @@ class PencilAirlight {
   /// and middles of the grid pieces): sampling saves a sincos per sample.
   std::vector<double> gridCos_, gridSin_;
   std::unique_ptr<std::atomic<int>[]> state_;
+  /// Per spoke k: the planned leaf [leafA_[k], leafA_[k] + leafW_[k]] holding azimuths in
+  /// [k, k + 1), or leafW_[k] = 0 (none: blend k and k + 1). Cleared by reset().
+  std::vector<int> leafA_, leafW_;
 };
 
 }  // namespace fogbeam

@@ -115,6 +115,7 @@ struct AirlightImage {
   std::string table_cache_error;       ///< the last failure to write the table cache (empty: none)
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
+  std::size_t spokes = 0;        ///< moving lamps' spokes sampled before the pixels (pencil path)
   // The stages run interleaved on all threads: thread time per stage divided by the threads
   // (equal to wall time when the threads are kept busy).
   double eval_seconds = 0.0;     ///< evaluating pixels (kernels and per-ray lamps)
