@@ -221,9 +221,12 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
   for (std::thread& th : pool) th.join();
 }
 
-KernelTable::Lookup KernelTable::lookup(double gamma, double tau) const noexcept {
+double KernelTable::tauPosition(double tau) const noexcept {
+  return std::clamp(std::log1p(std::max(tau, 0.0) / kTau0) * tScale_, 0.0, nT_ - 1.0);
+}
+
+KernelTable::Lookup KernelTable::lookupAt(double gamma, double v) const noexcept {
   const double u = std::clamp(gammaAxis(std::clamp(gamma, 0.0, kPi)) * gScale_, 0.0, nG_ - 1.0);
-  const double v = std::clamp(std::log1p(std::max(tau, 0.0) / kTau0) * tScale_, 0.0, nT_ - 1.0);
   const int ig = std::min(static_cast<int>(u), nG_ - 2), it = std::min(static_cast<int>(v), nT_ - 2);
   const double fu = u - ig, fv = v - it;
   Lookup l{};

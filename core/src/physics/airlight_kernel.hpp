@@ -88,7 +88,10 @@ class KernelTable {
     float w[4];           ///< their bilinear weights
     int cut;              ///< the expansion holds on [0, knot(cut)] (the smallest of the four nodes')
   };
-  [[nodiscard]] Lookup lookup(double gamma, double tau) const noexcept;
+  [[nodiscard]] Lookup lookup(double gamma, double tau) const noexcept { return lookupAt(gamma, tauPosition(tau)); }
+  /// τ's position on the table's axis (a pencil's rays share one τ: computed once).
+  [[nodiscard]] double tauPosition(double tau) const noexcept;
+  [[nodiscard]] Lookup lookupAt(double gamma, double tauPos) const noexcept;
   [[nodiscard]] std::size_t bytes() const noexcept { return coef_.size() * sizeof(float) + cut_.size() * sizeof(int); }
   /// M of the header, for tests.
   [[nodiscard]] static double kernel(const Phase& phase, double psi, double gamma, double tau) noexcept;

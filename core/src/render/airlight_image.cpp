@@ -1158,12 +1158,13 @@ std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool) {
     const PencilAirlight& pa = *st.pencils[q];
     const int n = pa.spokeCount();
     st.gridSpokes.resize(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
-    for (int j = 0; j < ny; ++j)
+    pool.parallelFor(static_cast<std::size_t>(ny), [&](std::size_t row) {
+      const int j = static_cast<int>(row);
       for (int i = 0; i < nx; ++i) {
         const double x = std::min(i * kStep, cam.width - 1) + 0.5, y = std::min(j * kStep, cam.height - 1) + 0.5;
-        st.gridSpokes[static_cast<std::size_t>(j) * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i)] =
-            pa.spokeOf(cam.rayDirection(x, y));
+        st.gridSpokes[row * static_cast<std::size_t>(nx) + static_cast<std::size_t>(i)] = pa.spokeOf(cam.rayDirection(x, y));
       }
+    });
     st.spokeMask.assign(static_cast<std::size_t>(n), 0);
     auto mark = [&](int a, int b) {
       if (a < 0 || b < 0) return;

@@ -118,14 +118,17 @@ class PencilAirlight {
   };
   PencilAirlight() = default;
   [[nodiscard]] SpokePair spokesOf(const Vec3& direction) const noexcept;
+  /// The spokes around azimuth φ (radians, [−π, π]) about the eye→lamp axis.
+  [[nodiscard]] SpokePair spokesAt(double phi) const noexcept;
   void ensureSpoke(int s) const;
   void sampleSpoke(int s) const;
   void mergeSmoothPieces(std::vector<Piece>& pieces) const;
   void integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights, const double* psi,
                  std::size_t n, double* out, double psiStart = 0.0) const;
   void projectSpoke(int s) const;
-  /// ∫_0^{xEnd} (Σ_r u_r β_r) I_s dψ of spoke s (xEnd within the expansion's range).
-  [[nodiscard]] double expansionIntegral(int s, const float* u, double xEnd) const noexcept;
+  /// ∫_0^{xEnd} (Σ_r u_r β_r) I dψ, I the blend of the pair's spokes (xEnd within the
+  /// expansion's range).
+  [[nodiscard]] double expansionIntegral(const SpokePair& sp, const float* u, double xEnd) const noexcept;
 
   const AirlightEvaluator* lamp_ = nullptr;
   PencilOptions options_;
@@ -133,6 +136,7 @@ class PencilAirlight {
   Vec3 eye_{0.0};
   Vec3 e0_{1, 0, 0}, e1_{0, 1, 0}, e2_{0, 0, 1};  // eye→lamp axis and two normals (world)
   double distance_ = 0.0;                          // |S − O|, metres
+  double tau_ = 0.0, tauPosition_ = 0.0;           // K_t |S − O| at reset() and its kernel-table position
   bool negligible_ = false;
   // Per spoke: its pieces and its state (0 not sampled, 1 being sampled, 2 ready). Filled
   // lazily from const evaluation calls, hence mutable; the state orders the accesses.
