@@ -780,7 +780,7 @@ json nearFieldStage(const Scene& base, const BenchOptions& o, unsigned threads) 
 // above 1 % of the frame's 99.5th percentile of luminance.
 struct TrafficRun {
   StageStats airlight;
-  std::size_t evaluated = 0, mapNodes = 0, spokes = 0;
+  std::size_t evaluated = 0, mapNodes = 0, spokes = 0, movingEvaluated = 0;
   double mapMs = 0.0;
   AirlightImage last;
   Scene lastScene;  // the poses of the last frame
@@ -810,6 +810,7 @@ Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, con
     run.evaluated = run.last.evaluated;
     run.mapNodes = run.last.map_nodes;
     run.spokes = run.last.spokes;
+    run.movingEvaluated = run.last.moving_evaluated;
     mapMs.push_back(1e3 * run.last.map_seconds);
   }
   run.mapMs = percentile(mapMs, 0.5);
@@ -862,6 +863,7 @@ json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
     r["evaluated_pixels"] = run->evaluated;
     r["map_nodes"] = run->mapNodes;
     r["spokes"] = run->spokes;
+    r["moving_evaluated"] = run->movingEvaluated;
     r["map_ms"] = run->mapMs;
     r["vs_static"] = base->airlight.median() > 0.0 ? run->airlight.median() / base->airlight.median() : 0.0;
     // The last frame's poses, per ray, on sample pixels above 1 % of its 99.5th percentile.
@@ -919,7 +921,8 @@ void printTraffic(const json& t) {
       std::printf("  %-30s %9.2f ms  (%zu pixels evaluated for the maps)\n", "  of which lamp maps", r["map_ms"].get<double>(),
                   r["map_nodes"].get<std::size_t>());
     else
-      std::printf("  %-30s %zu a frame\n", "  spokes sampled", r["spokes"].get<std::size_t>());
+      std::printf("  %-30s %zu a frame; %zu (pixel, moving lamp) pairs evaluated\n", "  spokes sampled",
+                  r["spokes"].get<std::size_t>(), r["moving_evaluated"].get<std::size_t>());
     printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
   }
 }

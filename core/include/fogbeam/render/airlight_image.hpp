@@ -116,6 +116,9 @@ struct AirlightImage {
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
   std::size_t spokes = 0;        ///< moving lamps' spokes sampled before the pixels (pencil path)
+  /// (pixel, moving lamp) pairs evaluated; the others of the evaluated pixels were interpolated
+  /// lamp by lamp where that lamp's light is smooth (pencil path, subsampled)
+  std::size_t moving_evaluated = 0;
   // The stages run interleaved on all threads: thread time per stage divided by the threads
   // (equal to wall time when the threads are kept busy).
   double eval_seconds = 0.0;     ///< evaluating pixels (kernels and per-ray lamps)
