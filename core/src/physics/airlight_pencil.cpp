@@ -71,6 +71,22 @@ void PencilAirlight::reset(const Vec3& eye) {
   leafA_.resize(static_cast<std::size_t>(spokeCount_));
   tau_ = lamp_->medium().extinction_per_m * distance_;
   tauPosition_ = kernel_ ? kernel_->tauPosition(tau_) : 0.0;
+  // The adaptive plan's test rays (middleDiffers): the expansion's coefficients at angles γ
+  // from the lamp's direction of 0.25° to 128° (doubling), this τ, up to each one's cut.
+  testRows_.clear();
+  testCut_.clear();
+  if (kernel_ && tau_ <= detail::KernelTable::kTauMax) {
+    const int nf = detail::psiBasis().functions();
+    for (double deg = 0.25; deg <= 128.0; deg *= 2.0) {
+      const detail::KernelTable::Lookup lk = kernel_->lookupAt(radians(deg), tauPosition_);
+      const int cut = std::min(nf, lk.cut + 3);
+      for (int r = 0; r < nf; ++r)
+        testRows_.push_back(r < cut ? lk.w[0] * lk.row[0][r] + lk.w[1] * lk.row[1][r] + lk.w[2] * lk.row[2][r] +
+                                          lk.w[3] * lk.row[3][r]
+                                    : 0.0f);
+      testCut_.push_back(cut);
+    }
+  }
 }
 
 int PencilAirlight::coarseStep() const noexcept {
@@ -81,28 +97,41 @@ int PencilAirlight::coarseStep() const noexcept {
 }
 
 bool PencilAirlight::middleDiffers(int a, int w) const {
-  if (!kernel_ || w < 2) return true;
+  if (!kernel_ || w < 2 || testRows_.empty()) return true;
   const auto at = [&](int s) -> const std::vector<float>& {
     return projections_[static_cast<std::size_t>(((s % spokeCount_) + spokeCount_) % spokeCount_)];
   };
   const std::vector<float>& pa = at(a);
   const std::vector<float>& pm = at(a + w / 2);
   const std::vector<float>& pb = at(a + w);
-  const detail::PsiBasis& basis = detail::psiBasis();
-  const int nf = basis.functions();
-  // Projections divided by their function's width are local means of I (cd): the test is on
-  // those, so that the dense functions near ψ = 0 weigh as much as the wide ones.
-  auto mean = [&](const std::vector<float>& p, int r) {
-    return static_cast<double>(p[static_cast<std::size_t>(r)]) / basis.integral(r);
-  };
+  const int nf = detail::psiBasis().functions();
+  // What a ray of the middle spoke would read from the blend of the ends instead of its own
+  // spoke, for sky rays at the test angles γ and for rays ending at every knot (the partial
+  // sums of the expansion, eq. 3 less its scale): within spoke_tolerance of its own value, or of
+  // 1 % of the largest of these values.
+  thread_local std::vector<double> mid, diff;
+  const std::size_t rows = testCut_.size();
+  mid.assign(rows * static_cast<std::size_t>(nf), 0.0);
+  diff.assign(rows * static_cast<std::size_t>(nf), 0.0);
   double peak = 0.0;
-  for (int r = 0; r < nf; ++r)
-    peak = std::max({peak, std::abs(mean(pa, r)), std::abs(mean(pm, r)), std::abs(mean(pb, r))});
-  const double floor = 0.01 * peak;
-  for (int r = 0; r < nf; ++r) {
-    const double mid = mean(pm, r), blend = 0.5 * (mean(pa, r) + mean(pb, r));
-    if (std::abs(mid - blend) > options_.spoke_tolerance * std::max(std::abs(mid), floor)) return true;
+  for (std::size_t t = 0; t < rows; ++t) {
+    const float* u = testRows_.data() + t * static_cast<std::size_t>(nf);
+    double sm = 0.0, sd = 0.0;
+    for (int r = 0; r < testCut_[t]; ++r) {
+      const auto k = static_cast<std::size_t>(r);
+      sm += static_cast<double>(u[k]) * static_cast<double>(pm[k]);
+      sd += static_cast<double>(u[k]) * (static_cast<double>(pm[k]) - 0.5 * (static_cast<double>(pa[k]) + static_cast<double>(pb[k])));
+      mid[t * static_cast<std::size_t>(nf) + k] = sm;
+      diff[t * static_cast<std::size_t>(nf) + k] = sd;
+      peak = std::max(peak, std::abs(sm));
+    }
   }
+  const double floor = 0.01 * peak;
+  for (std::size_t t = 0; t < rows; ++t)
+    for (int r = 0; r < testCut_[t]; ++r) {
+      const std::size_t k = t * static_cast<std::size_t>(nf) + static_cast<std::size_t>(r);
+      if (std::abs(diff[k]) > options_.spoke_tolerance * std::max(std::abs(mid[k]), floor)) return true;
+    }
   return false;
 }
 

@@ -51,10 +51,11 @@ struct PencilOptions {
   /// Rays through the kernel expansion (above); false: every piece through the G moments.
   bool kernel_expansion = true;
   /// Adaptive spokes (planned by an image evaluator, see coarseStep()): a spoke between two
-  /// sampled ones is left out where it equals their blend within this fraction, per basis
-  /// function, of the larger of its own local mean intensity and 1 % of the spokes' peak.
-  /// 0 = every spoke (needs kernel_expansion; without it every spoke is sampled).
-  double spoke_tolerance = 5e-3;
+  /// sampled ones is left out where test rays of it (sky rays at 0.25°–128° from the lamp and
+  /// rays ending at every knot of the expansion) read the blend of the two within this
+  /// fraction of their own value or of 1 % of the largest such value. 0 = every spoke (needs
+  /// kernel_expansion; without it every spoke is sampled).
+  double spoke_tolerance = 1e-3;
 };
 
 namespace detail {
@@ -90,8 +91,8 @@ class PencilAirlight {
   // stay 0.25° apart; across smooth light one in 16 or 8 is sampled.
   /// The coarse spacing, in spokes (a power of two dividing spokeCount(); 1 = no planning).
   [[nodiscard]] int coarseStep() const noexcept;
-  /// With spokes a, a + w/2 and a + w (mod spokeCount()) sampled: whether the middle one
-  /// differs from the mean of the ends by more than spoke_tolerance (see PencilOptions).
+  /// With spokes a, a + w/2 and a + w (mod spokeCount()) sampled: whether rays of the middle
+  /// one would read the mean of the ends wrongly by more than spoke_tolerance (PencilOptions).
   [[nodiscard]] bool middleDiffers(int a, int w) const;
   /// Rays whose azimuth lies in spokes [a, a + w) blend spokes a and a + w (mod spokeCount()),
   /// both sampled. Not thread-safe: between the sampling passes, before rays read.
@@ -152,6 +153,10 @@ class PencilAirlight {
   /// Per spoke k: the planned leaf [leafA_[k], leafA_[k] + leafW_[k]] holding azimuths in
   /// [k, k + 1), or leafW_[k] = 0 (none: blend k and k + 1). Cleared by reset().
   std::vector<int> leafA_, leafW_;
+  /// middleDiffers' test rays: per test angle, the expansion's coefficients (functions() floats,
+  /// 0 from its cut on) and how many count.
+  std::vector<float> testRows_;
+  std::vector<int> testCut_;
 };
 
 }  // namespace fogbeam
