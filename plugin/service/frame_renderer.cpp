@@ -33,11 +33,12 @@ Mat3 rotation(const ipc::Pose& p) {
 
 Vec3 position(const ipc::Pose& p) { return Vec3(p.position_m[0], p.position_m[1], p.position_m[2]); }
 
-/// What the tables depend on besides the rig: the fog and the ego's quantised bending. Fogs
-/// compare by the medium they describe (a visibility and the equivalent extinction are equal).
+/// What the tables depend on besides the rig: the fog and the ego's bending angle (exact, or
+/// rounded to [ego] bending_step_deg). Fogs compare by the medium they describe (a visibility
+/// and the equivalent extinction are equal).
 struct TableKey {
   ipc::Environment fog;
-  int bendingSteps = 0;
+  double bendingDeg = 0.0;
 
   bool operator==(const TableKey& o) const {
     const ipc::Environment& a = fog;
@@ -49,7 +50,7 @@ struct TableKey {
     const bool phaseSame = a.phase == b.phase && (a.phase != ipc::PhaseCode::HenyeyGreenstein || a.g == b.g) &&
                            (a.phase != ipc::PhaseCode::FogMie || a.droplet_diameter_um == b.droplet_diameter_um);
     // Relative 1e-6 in K_t: the float of a message and the double of a config file agree.
-    return bendingSteps == o.bendingSteps && std::abs(kt(a) - kt(b)) <= 1e-6 * kt(a) && a.albedo == b.albedo &&
+    return bendingDeg == o.bendingDeg && std::abs(kt(a) - kt(b)) <= 1e-6 * kt(a) && a.albedo == b.albedo &&
            a.ambient_cd_m2 == b.ambient_cd_m2 && phaseSame;
   }
 };
@@ -184,7 +185,7 @@ struct ChannelRenderer::Impl {
     s.camera = vehicleCamera;
     s.camera.position_m = O + R * vehicleCamera.position_m;
     s.camera.worldFromCamera = R * vehicleCamera.worldFromCamera;
-    const Mat3 bend = worldFromYawPitchRoll(radians(key.bendingSteps * kBendingStepDeg), 0.0, 0.0);
+    const Mat3 bend = worldFromYawPitchRoll(radians(key.bendingDeg), 0.0, 0.0);
     for (const RigPoint& p : egoPoints) {
       // Bending swivels the lamp about the vehicle's vertical axis through the lamp.
       const RigLamp& r = config->ego.lamps[p.rig_lamp];
@@ -282,15 +283,17 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
 
 TableKey ChannelRenderer::Impl::wantedTables(const ipc::SimSnapshot& state) const {
   // The environment message's fog, or the configuration's until one arrives. The bending angle
-  // matters only when an ego lamp bends; it is clamped to the configured limit and quantised
-  // (kBendingStepDeg), each step having its own view tables.
+  // matters only when an ego lamp bends; it is clamped to the configured limit and, with
+  // bending_step_deg > 0, rounded to its multiples (each angle has its own view tables; while
+  // they are built, pending frames show the exact angle per pixel).
   TableKey want;
   want.fog = state.environment.stamp.valid ? state.environment.value : environmentFrom(config->fog);
   const double bend = std::clamp(static_cast<double>(state.lamps.value.bending_deg), -config->bending_max_deg,
                                  config->bending_max_deg);
   const bool anyBending =
       std::any_of(config->ego.lamps.begin(), config->ego.lamps.end(), [](const RigLamp& r) { return r.bending; });
-  want.bendingSteps = anyBending ? static_cast<int>(std::lround(bend / kBendingStepDeg)) : 0;
+  const double step = config->bending_step_deg;
+  want.bendingDeg = !anyBending ? 0.0 : step > 0.0 ? step * std::round(bend / step) : bend;
   return want;
 }
 

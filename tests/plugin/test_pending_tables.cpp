@@ -162,6 +162,45 @@ TEST(PendingTables, LockStepRunsRepeatByteForByte) {
   EXPECT_EQ(pending[0], expected);
 }
 
+// Bending at any angle ([ego] bending_step_deg = 0, the default): the low beam bent by 2.4° is
+// the low beam mounted 2.4° turned, pending frames (per pixel) and tables' frames alike; rounded
+// to 1° steps the frame shows 2° instead, which the comparison must see.
+TEST(PendingTables, BendingAtAnyAngle) {
+  constexpr float kBend = 2.4f;
+  auto bendingCfg = [](std::vector<std::string> extra) {
+    extra.push_back("render.table_adopt_frames=1");
+    ServiceConfig c = configWith(std::move(extra));
+    c.ego.lamps.at(0).bending = true;
+    return c;
+  };
+  auto framesOf = [](const ServiceConfig& c, float bending, RenderedFrame& first, RenderedFrame& tables) {
+    auto r = ChannelRenderer::create(c, 0, worldOf(c), nullptr);
+    ASSERT_TRUE(r) << r.error().message;
+    ipc::SimSnapshot s = stateWith(0.0f);
+    s.lamps.value.bending_deg = bending;
+    ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, first));
+    for (int k = 0; k < 3; ++k) ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, tables));
+    EXPECT_TRUE(first.pending);
+    EXPECT_FALSE(tables.pending);
+  };
+  RenderedFrame bentFirst, bent, roundedFirst, rounded, mountedFirst, mounted;
+  framesOf(bendingCfg({}), kBend, bentFirst, bent);
+  framesOf(bendingCfg({"ego.bending_step_deg=1"}), kBend, roundedFirst, rounded);
+  ServiceConfig turned = configWith({"render.table_adopt_frames=1"});
+  SceneLamp& l = turned.ego.lamps.at(0).lamp;
+  l.lamp.worldFromLamp = worldFromYawPitchRoll(radians(static_cast<double>(kBend)), 0.0, 0.0) * l.lamp.worldFromLamp;
+  framesOf(turned, 0.0f, mountedFirst, mounted);
+  const auto lum = [](const RenderedFrame& f) { return luminance(f.layers.airlight); };
+  const double tablesP95 = p95Relative(lum(bent), lum(mounted));
+  const double pendingP95 = p95Relative(lum(bentFirst), lum(mounted));
+  const double roundedP95 = p95Relative(lum(rounded), lum(mounted));
+  std::printf("bent 2.4° against mounted 2.4°: tables p95 %.2e, pending frame %.2e; rounded to 2°: %.2e\n", tablesP95,
+              pendingP95, roundedP95);
+  EXPECT_LT(tablesP95, 1e-5);
+  EXPECT_LT(pendingP95, 0.01);
+  EXPECT_GT(roundedP95, 10.0 * tablesP95 + 1e-3);
+}
+
 TEST(PendingTables, PreviousWaitsForTheFirstTables) {
   const ServiceConfig cfg = configWith({"render.pending_tables=\"previous\""});
   auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);

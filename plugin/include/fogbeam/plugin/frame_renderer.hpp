@@ -21,8 +21,8 @@
 //  * glow and glare (LampEffects) of the lamps that are on, per frame, on the airlight's pool.
 //  * rig lamps with an aperture become their point lamps once placed (expandRig, placeRigPoint).
 //
-// Tables that depend on the fog and on the ego lamps' bending angle (quantised to
-// kBendingStepDeg) take seconds to build; a change starts a build on a background thread
+// Tables that depend on the fog and on the ego lamps' bending angle (exact, or rounded to
+// [ego] bending_step_deg) take seconds to build; a change starts a build on a background thread
 // (RenderedFrame::pending while it is not in use). With [render] pending_tables = "per-pixel"
 // (the default) frames meanwhile evaluate every lamp that is on per pixel, as moving lamps, in
 // the wanted fog and bending, and nothing waits: free-running (`wait` = false) takes a build when
@@ -50,9 +50,6 @@ class GlSurfacePass;
 }
 
 namespace fogbeam::plugin {
-
-/// Bending angles are applied in steps of this many degrees (each step has its own view tables).
-inline constexpr double kBendingStepDeg = 1.0;
 
 /// Where a frame was seen from and what it covers (the view fields of the shm metadata).
 struct FrameView {
