@@ -100,6 +100,13 @@ void PsiBasis::eval(int j, double psi, double b[4]) const noexcept {
   for (int i = 0; i < 4; ++i, c += 4) b[i] = c[0] + s * (c[1] + s * (c[2] + s * c[3]));
 }
 
+void PsiBasis::combine(int j, const float w[4], double g[4]) const noexcept {
+  const double* c = poly_.data() + static_cast<std::size_t>(j) * 16;
+  for (int p = 0; p < 4; ++p) g[p] = 0.0;
+  for (int i = 0; i < 4; ++i, c += 4)
+    for (int p = 0; p < 4; ++p) g[p] += static_cast<double>(w[i]) * c[p];
+}
+
 int PsiBasis::interval(double psi) const noexcept {
   const auto it = std::upper_bound(knots_.begin(), knots_.end(), psi);
   const int j = static_cast<int>(it - knots_.begin()) - 1;

@@ -52,6 +52,13 @@ class PsiBasis {
   [[nodiscard]] int interval(double psi) const noexcept;
   /// The values at ψ of the four functions j, j + 1, j + 2, j + 3 that live on interval j.
   void eval(int j, double psi, double b[4]) const noexcept;
+  /// Σ_i w[i] β_{j+i} on interval j as one cubic in s = (ψ − t_j)/(t_{j+1} − t_j):
+  /// g[p] the coefficient of s^p.
+  void combine(int j, const float w[4], double g[4]) const noexcept;
+  /// s of ψ on interval j (for combine()'s cubic).
+  [[nodiscard]] double local(int j, double psi) const noexcept {
+    return (psi - knots_[static_cast<std::size_t>(j)]) * invStep_[static_cast<std::size_t>(j)];
+  }
   /// ∫_0^π β_r dψ = (τ_{r+4} − τ_r) / 4, τ the padded knots (radians): the smoothing width of
   /// a projection ∫ β_r I dψ, which divided by it is a local mean of I.
   [[nodiscard]] double integral(int r) const noexcept {

@@ -392,6 +392,10 @@ double PencilAirlight::expansionIntegral(const SpokePair& sp, const float* u, do
   const float* left1 = p1 + nf + 3 * j0;
   for (int i = 0; i < 3; ++i) sum += static_cast<double>(u[j0 + i]) * static_cast<double>(w0 * left0[i] + w1 * left1[i]);
   if (xEnd > t0) {
+    // The four functions weighted by u are one cubic on the interval: 3-point Gauss on each
+    // piece's share of [t_j0, xEnd] is exact (a quintic).
+    double gc[4];
+    basis.combine(j0, u + j0, gc);
     for (const auto& [s, w] : {std::pair{sp.s0, 1.0 - sp.t}, std::pair{sp.s1, sp.t}}) {
       if (w == 0.0) continue;
       const std::vector<Piece>& pcs = pieces_[static_cast<std::size_t>(s)];
@@ -401,11 +405,9 @@ double PencilAirlight::expansionIntegral(const SpokePair& sp, const float* u, do
         if (!(sb > sa)) continue;
         const double half = 0.5 * (sb - sa), mid = sa + half;
         for (int g = 0; g < 3; ++g) {
-          const double x = mid + half * kGL3x[g], d = x - it->m;
-          const double wi = w * half * kGL3w[g] * (it->i0 + d * (it->c1 + d * it->c2));
-          double bv[4];
-          basis.eval(j0, x, bv);
-          for (int i = 0; i < 4; ++i) sum += wi * bv[i] * static_cast<double>(u[j0 + i]);
+          const double x = mid + half * kGL3x[g], d = x - it->m, sl = basis.local(j0, x);
+          const double gx = gc[0] + sl * (gc[1] + sl * (gc[2] + sl * gc[3]));
+          sum += w * half * kGL3w[g] * (it->i0 + d * (it->c1 + d * it->c2)) * gx;
         }
       }
     }
