@@ -158,23 +158,36 @@ std::pair<double, double> imageError(const AirlightImage& got, const AirlightIma
 // The oncoming car's measured lamps of nightRoad move relative to the eye: the pencil path for
 // such lamps (MovingLampPath::Pencil, the default) against the per-ray accurate method, the
 // definition, and both against the reference method.
-TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
+// nightRoad's oncoming car alone at 128×72, its surfaces those of the whole scene.
+struct OncomingCar {
   Scene scene = nightRoad(128, 72);
-  Scene oncoming = scene;
-  oncoming.lamps = {scene.lamps[2], scene.lamps[3]};
+  Scene oncoming;
   SurfaceBuffers surf;
-  renderSurfacesCpu(scene, surf);
-  auto run = [&](MovingLampPath path, AirlightImage& img) {
+  OncomingCar() {
+    oncoming = scene;
+    oncoming.lamps = {scene.lamps[2], scene.lamps[3]};
+    renderSurfacesCpu(scene, surf);
+  }
+  /// Every pixel of the car's airlight through `path` (the pencil with `spokeTolerance`).
+  void image(MovingLampPath path, double spokeTolerance, AirlightImage& img) const {
     FastPathOptions f = testFastPath();
     f.moving_lamps = path;
+    f.pencil_options.spoke_tolerance = spokeTolerance;
     auto ev = AirlightImageEvaluator::build(oncoming, AirlightMethod::Accurate, {}, 0, f);
     ASSERT_TRUE(ev.has_value());
     ev->evaluate(oncoming, surf, SubsamplingOptions{.full = true}, img);
     std::printf("%s: %.1f ms\n", ev->describe().c_str(), 1e3 * img.seconds);
-  };
+  }
+};
+
+TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
+  const OncomingCar car;
+  const Scene& scene = car.scene;
+  const Scene& oncoming = car.oncoming;
+  const SurfaceBuffers& surf = car.surf;
   AirlightImage perRay, pencil;
-  run(MovingLampPath::PerRay, perRay);
-  run(MovingLampPath::Pencil, pencil);
+  car.image(MovingLampPath::PerRay, 0.0, perRay);
+  car.image(MovingLampPath::Pencil, PencilOptions{}.spoke_tolerance, pencil);
   // Both against the reference method on random pixels: the truth both approximate.
   auto ref = AirlightImageEvaluator::build(oncoming, AirlightMethod::Reference, {}, 0);
   ASSERT_TRUE(ref.has_value());
@@ -205,23 +218,11 @@ TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
 // The adaptive spoke plan (PencilOptions::spoke_tolerance) against every spoke: fewer spokes,
 // the same image within the plan's tolerance, and no worse against the per-ray method.
 TEST(AirlightImage, AdaptiveSpokesAgainstEverySpoke) {
-  Scene scene = nightRoad(128, 72);
-  Scene oncoming = scene;
-  oncoming.lamps = {scene.lamps[2], scene.lamps[3]};
-  SurfaceBuffers surf;
-  renderSurfacesCpu(scene, surf);
-  auto run = [&](MovingLampPath path, double tolerance, AirlightImage& img) {
-    FastPathOptions f = testFastPath();
-    f.moving_lamps = path;
-    f.pencil_options.spoke_tolerance = tolerance;
-    auto ev = AirlightImageEvaluator::build(oncoming, AirlightMethod::Accurate, {}, 0, f);
-    ASSERT_TRUE(ev.has_value());
-    ev->evaluate(oncoming, surf, SubsamplingOptions{.full = true}, img);
-  };
+  const OncomingCar car;
   AirlightImage perRay, every, planned;
-  run(MovingLampPath::PerRay, 0.0, perRay);
-  run(MovingLampPath::Pencil, 0.0, every);
-  run(MovingLampPath::Pencil, PencilOptions{}.spoke_tolerance, planned);
+  car.image(MovingLampPath::PerRay, 0.0, perRay);
+  car.image(MovingLampPath::Pencil, 0.0, every);
+  car.image(MovingLampPath::Pencil, PencilOptions{}.spoke_tolerance, planned);
   const auto [planP95, planMax] = imageError(planned, every);
   const auto [everyRayP95, everyRayMax] = imageError(every, perRay);
   const auto [planRayP95, planRayMax] = imageError(planned, perRay);
