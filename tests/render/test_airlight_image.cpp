@@ -236,6 +236,57 @@ TEST(AirlightImage, AdaptiveSpokesAgainstEverySpoke) {
   EXPECT_LE(planRayMax, 0.02);
 }
 
+// How well a fog between two tabulated fogs is shown by blending their images (the way a fog
+// that changes every frame could keep to table frames: docs/airlight.md, "What is left"): the
+// ego's low beams and the street lamp at K_t, against tables built at K_t itself, for brackets
+// K_t / √ρ and K_t √ρ (the wanted fog at the bracket's geometric middle, where a blend is worst),
+// blended linearly and geometrically in ln K_t. Measured, not a product path yet.
+TEST(AirlightImage, FogBetweenTwoTabulatedFogs) {
+  Scene scene = nightRoad(128, 72);
+  scene.lamps = {scene.lamps[0], scene.lamps[1], scene.lamps[4]};
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  const double kt = scene.fog.extinction_per_m;
+  // Every image through tables of the same options, so that only the fog differs: at 0.5° (a
+  // quarter of the directions of 0.25°; the blend's error is the fog's, not the tables').
+  FastPathOptions fast = scaledFastPath();
+  fast.view_table_step_deg = std::max(fast.view_table_step_deg, 0.5);
+  auto imageAt = [&](double k, AirlightImage& img) {
+    Scene s = scene;
+    s.fog.extinction_per_m = k;
+    auto ev = AirlightImageEvaluator::build(s, AirlightMethod::Accurate, {}, 0, fast);
+    ASSERT_TRUE(ev.has_value());
+    ev->evaluate(s, surf, SubsamplingOptions{.full = true}, img);
+  };
+  AirlightImage exact;
+  imageAt(kt, exact);
+  double previous = 0.0;
+  for (double rho : {1.1, 1.2, 1.4}) {
+    AirlightImage lo, hi, linear, geometric;
+    imageAt(kt / std::sqrt(rho), lo);
+    imageAt(kt * std::sqrt(rho), hi);
+    linear = geometric = exact;
+    for (std::size_t k = 0; k < exact.rgb.size(); ++k) {
+      const double a = lo.rgb[k], b = hi.rgb[k];
+      linear.rgb[k] = static_cast<float>(0.5 * (a + b));
+      geometric.rgb[k] = static_cast<float>(a > 0.0 && b > 0.0 ? std::sqrt(a * b) : 0.5 * (a + b));
+    }
+    const auto [linP95, linMax] = imageError(linear, exact);
+    const auto [geoP95, geoMax] = imageError(geometric, exact);
+    const auto [loP95, loMax] = imageError(lo, exact);
+    std::printf("K_t ratio %.2f between tabulated fogs: linear blend p95 %.2e max %.2e, geometric p95 %.2e max %.2e "
+                "(the nearer fog alone: p95 %.2e)\n",
+                rho, linP95, linMax, geoP95, geoMax, loP95);
+    // Second order in ln ρ: the blend beats the nearer fog alone, and its error grows with ρ.
+    EXPECT_LT(geoP95, 0.25 * loP95);
+    EXPECT_GT(geoP95, previous);
+    previous = geoP95;
+    if (rho <= 1.1) {
+      EXPECT_LE(geoP95, 2e-3);
+    }
+  }
+}
+
 // An off-axis camera (one channel of a multi-screen cab) sees a window of a larger centred
 // camera with the same pose and focal length; its image must be that window of the centred
 // image. The window holds both vehicle lamps' images, so the view tables (whose window in the
