@@ -24,7 +24,11 @@
 // vehicle-mounted lamps from view tables (built once: the lamp is fixed to the eye; lamps of
 // one colour summed into one table), by Highway kernels. Measured and spot lamps fixed in the
 // world or on other vehicles go per pixel through the pencil integrator (airlight_pencil.hpp)
-// or per ray (MovingLampPath).
+// or per ray (MovingLampPath). With the pencil, the spokes a frame's rays read are planned and
+// sampled on all threads before the pixels (adaptively: PencilOptions::spoke_tolerance), and in
+// a block split for another reason a moving lamp whose own light is smooth there is
+// interpolated instead of evaluated (half the block tolerance shared among the moving lamps;
+// AirlightImage::moving_evaluated counts the pairs evaluated).
 //
 // Thread-safety: one evaluate() at a time per AirlightImageEvaluator.
 #pragma once
@@ -68,7 +72,8 @@ struct SubsamplingOptions {
 ///  * PerRay — the accurate method per pixel (the definition; 15–25 µs per pixel and lamp for
 ///    a measured profile);
 ///  * Pencil — per pixel through PencilAirlight, whose profile samples are shared by every
-///    ray in a plane through eye and lamp: a few times faster, within 1e-3 (p95) of PerRay;
+///    ray in a plane through eye and lamp, and a kernel expansion per ray: 0.2–0.8 µs per
+///    pixel and lamp besides the spokes (~12 µs each, shared), within 1e-3 (p95) of PerRay;
 ///  * Map — per frame, each lamp's own adaptive table of pencil columns over the image
 ///    (render/lamp_map.hpp), read per pixel at the pixel's own distance; the pencil per ray
 ///    only at the lamp's image and where the table cannot follow the lamp's pattern.
