@@ -131,6 +131,7 @@ struct AirlightImageEvaluator::State {
     Mat3 axes{1.0};
   };
   std::vector<PencilKey> pencilKeys;
+  std::vector<float> pencilLum;  // per pencilLamps entry: r + g + b of its colour (block tests)
   // Stage "sample spokes": per frame, which spokes of each pencil its rays read, and the
   // (pencil, spoke) pairs handed to the threads (memory kept between frames).
   std::vector<int> gridSpokes;
@@ -221,10 +222,12 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
       st.isoLamps.push_back(i);
     else if (useFast && sl.mount == LampMount::Vehicle)
       st.viewLamps.push_back(i);
-    else if (useFast && fast.moving_lamps != MovingLampPath::PerRay)
+    else if (useFast && fast.moving_lamps != MovingLampPath::PerRay) {
       st.pencilLamps.push_back(i);
-    else
+      st.pencilLum.push_back(static_cast<float>(sl.lamp.color[0] + sl.lamp.color[1] + sl.lamp.color[2]));
+    } else {
       st.rayLamps.push_back(i);
+    }
   }
   if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
   if (!st.pencilLamps.empty()) {
@@ -321,7 +324,7 @@ struct FrameCtx {
   // count (0: off, every evaluated pixel evaluates every lamp), and per lamp the factor from
   // its white L_m to the block test's luminance (r + g + b of its colour).
   std::size_t nq = 0;
-  std::array<float, 16> mlLum{};
+  const float* mlLum = nullptr;  // State::pencilLum
   std::size_t idx(int i, int j) const {
     return static_cast<std::size_t>(j) * static_cast<std::size_t>(cam->width) + static_cast<std::size_t>(i);
   }
@@ -1383,13 +1386,9 @@ FrameCtx planImage(const State& st, const Lamps& lamps, const Scene& scene, cons
   f.tilesY = tilesAlong(cam.height, f.tile);
   f.coarseX = cam.width <= 1 ? 1 : (cam.width - 1 + f.step - 1) / f.step + 1;
   f.coarseY = cam.height <= 1 ? 1 : (cam.height - 1 + f.step - 1) / f.step + 1;
-  if (!opt.full && st.fast.moving_lamps == MovingLampPath::Pencil && !st.pencilLamps.empty() &&
-      st.pencilLamps.size() <= f.mlLum.size()) {
+  if (!opt.full && st.fast.moving_lamps == MovingLampPath::Pencil && !st.pencilLamps.empty()) {
     f.nq = st.pencilLamps.size();
-    for (std::size_t q = 0; q < f.nq; ++q) {
-      const auto& c = lamps[st.pencilLamps[q]].lamp().color;
-      f.mlLum[q] = static_cast<float>(c[0] + c[1] + c[2]);
-    }
+    f.mlLum = st.pencilLum.data();
   }
   return f;
 }
