@@ -33,14 +33,15 @@ Mat3 rotation(const ipc::Pose& p) {
 
 Vec3 position(const ipc::Pose& p) { return Vec3(p.position_m[0], p.position_m[1], p.position_m[2]); }
 
-/// What the tables depend on besides the rig: the fog and the ego's bending angle (exact, or
-/// rounded to [ego] bending_step_deg). Fogs compare by the medium they describe (a visibility
-/// and the equivalent extinction are equal).
+/// What the tables depend on besides the rig: the fog and the ego's bending angle. Fogs compare
+/// by the medium they describe (a visibility and the equivalent extinction are equal); tables
+/// for one angle serve angles within [ego] bending_tolerance_deg of it (serves()).
 struct TableKey {
   ipc::Environment fog;
   double bendingDeg = 0.0;
 
-  bool operator==(const TableKey& o) const {
+  bool operator==(const TableKey& o) const { return bendingDeg == o.bendingDeg && sameFog(o); }
+  [[nodiscard]] bool sameFog(const TableKey& o) const {
     const ipc::Environment& a = fog;
     const ipc::Environment& b = o.fog;
     auto kt = [](const ipc::Environment& e) {
@@ -50,8 +51,13 @@ struct TableKey {
     const bool phaseSame = a.phase == b.phase && (a.phase != ipc::PhaseCode::HenyeyGreenstein || a.g == b.g) &&
                            (a.phase != ipc::PhaseCode::FogMie || a.droplet_diameter_um == b.droplet_diameter_um);
     // Relative 1e-6 in K_t: the float of a message and the double of a config file agree.
-    return bendingDeg == o.bendingDeg && std::abs(kt(a) - kt(b)) <= 1e-6 * kt(a) && a.albedo == b.albedo &&
-           a.ambient_cd_m2 == b.ambient_cd_m2 && phaseSame;
+    return std::abs(kt(a) - kt(b)) <= 1e-6 * kt(a) && a.albedo == b.albedo && a.ambient_cd_m2 == b.ambient_cd_m2 &&
+           phaseSame;
+  }
+  /// Tables made for this key serve a frame that wants `o`: the same fog, the bending angle
+  /// within `toleranceDeg`.
+  [[nodiscard]] bool serves(const TableKey& o, double toleranceDeg) const {
+    return sameFog(o) && std::abs(bendingDeg - o.bendingDeg) <= toleranceDeg;
   }
 };
 
@@ -283,17 +289,15 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
 
 TableKey ChannelRenderer::Impl::wantedTables(const ipc::SimSnapshot& state) const {
   // The environment message's fog, or the configuration's until one arrives. The bending angle
-  // matters only when an ego lamp bends; it is clamped to the configured limit and, with
-  // bending_step_deg > 0, rounded to its multiples (each angle has its own view tables; while
-  // they are built, pending frames show the exact angle per pixel).
+  // matters only when an ego lamp bends; it is clamped to the configured limit (tables for one
+  // angle serve angles within bending_tolerance_deg of it: serves()).
   TableKey want;
   want.fog = state.environment.stamp.valid ? state.environment.value : environmentFrom(config->fog);
   const double bend = std::clamp(static_cast<double>(state.lamps.value.bending_deg), -config->bending_max_deg,
                                  config->bending_max_deg);
   const bool anyBending =
       std::any_of(config->ego.lamps.begin(), config->ego.lamps.end(), [](const RigLamp& r) { return r.bending; });
-  const double step = config->bending_step_deg;
-  want.bendingDeg = !anyBending ? 0.0 : step > 0.0 ? step * std::round(bend / step) : bend;
+  want.bendingDeg = anyBending ? bend : 0.0;
   return want;
 }
 
@@ -327,10 +331,13 @@ Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const Table
         current = next;
       }
     }
-    wantHeld = frameIndex > 1 && lastWant == want ? wantHeld + 1 : 1;
+    // A want holds while its fog stays and its angle stays within the tolerance of the last
+    // frame's (a jittering bending signal holds).
+    const double tol = config->bending_tolerance_deg;
+    wantHeld = frameIndex > 1 && lastWant.serves(want, tol) ? wantHeld + 1 : 1;
     lastWant = want;
-    if (!(eval && current == want) && !building.valid() && wantHeld >= 2) startBuild(ego, want);
-    useTables = eval && current == want;
+    useTables = eval && current.serves(want, tol);
+    if (!useTables && !building.valid() && wantHeld >= 2) startBuild(ego, want);
     return Ok{};
   }
   // pending_tables = "previous". A finished background build replaces the tables in use
@@ -341,7 +348,7 @@ Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const Table
     eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
     current = next;
   }
-  if (!eval || !(current == want)) {
+  if (!eval || !current.serves(want, config->bending_tolerance_deg)) {
     if (wait || !eval) {
       // Lock-step, replay, and the very first frame: build here, the frame waits.
       auto built = buildFor(sceneFor(ego, want));
@@ -508,10 +515,13 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   const auto tw = Clock::now();
   if (Status s = m.updateTables(ego, want, wait); !s) return s;
   out.timings.table_wait_ms = ms(tw, Clock::now());
-  out.pending = !(m.current == want);
+  const bool served = m.current.serves(want, m.config->bending_tolerance_deg);
+  out.pending = m.gpuAirlight ? false : m.perPixelPending ? !m.useTables : !served;
   // The fog and bending this frame shows: the wanted ones, unless pending_tables = "previous"
   // keeps the tables' until their build is done.
-  const TableKey& key = m.perPixelPending || m.gpuAirlight ? want : m.current;
+  // (Tables serve it when its bending angle is within bending_tolerance_deg of theirs: then the
+  // frame shows theirs, the evaluator's lamps keeping the poses its tables were built for.)
+  const TableKey& key = m.gpuAirlight || (m.perPixelPending && !m.useTables) ? want : m.current;
 
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
   // bending; `lit` = the lamps that are on (world, ego by light bits, traffic), for the surface

@@ -101,7 +101,7 @@ constexpr std::array kChannelKeys{
 constexpr std::array kEgoKeys{
     KeySpec{"eye_m"},
     KeySpec{"bending_max_deg"},
-    KeySpec{"bending_step_deg"},
+    KeySpec{"bending_tolerance_deg"},
     KeySpec{"lamp"},
 };
 constexpr std::array kClassKeys{
@@ -310,7 +310,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     s.checkKeys(kEgoKeys);
     c.eye_m = optVec3(s, "eye_m").value_or(c.eye_m);
     c.bending_max_deg = s.number("bending_max_deg", Range{0.0, 45.0}, c.bending_max_deg);
-    c.bending_step_deg = s.number("bending_step_deg", Range{0.0, 5.0}, c.bending_step_deg);
+    c.bending_tolerance_deg = s.number("bending_tolerance_deg", Range{0.0, 5.0}, c.bending_tolerance_deg);
     if (s.find("lamp")) c.ego = parseRig(s, baseDir, true);
     c.ego.name = "ego";
   }
@@ -513,7 +513,7 @@ std::string toToml(const ServiceConfig& c) {
       << "\nexposure_ev = " << num(ch.exposure_ev) << "\n";
   }
   o << "\n[ego]\neye_m = " << vec(c.eye_m) << "\nbending_max_deg = " << num(c.bending_max_deg)
-    << "\nbending_step_deg = " << num(c.bending_step_deg) << "\n";
+    << "\nbending_tolerance_deg = " << num(c.bending_tolerance_deg) << "\n";
   for (const RigLamp& l : c.ego.lamps) o << "\n[[ego.lamp]]\n" << l.definition << "\n";
   for (const auto& [cls, rig] : c.traffic) {
     o << "\n[[traffic_class]]\nclass = " << cls << "\nname = " << quoted(rig.name) << "\n";

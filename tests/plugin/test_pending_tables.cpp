@@ -162,43 +162,64 @@ TEST(PendingTables, LockStepRunsRepeatByteForByte) {
   EXPECT_EQ(pending[0], expected);
 }
 
-// Bending at any angle ([ego] bending_step_deg = 0, the default): the low beam bent by 2.4° is
-// the low beam mounted 2.4° turned, pending frames (per pixel) and tables' frames alike; rounded
-// to 1° steps the frame shows 2° instead, which the comparison must see.
+// Bending at any angle: tables are built for the angle asked for and serve angles within
+// [ego] bending_tolerance_deg (0.05° by default) of it; frames beyond show their exact angle per
+// pixel until tables for it are in use. A low beam bent 2.4° against one mounted turned 2.4°;
+// with a 0.5° tolerance, 2° tables serve 2.4° and the frame shows 2°, which the comparison must
+// see; a bending signal that jitters by 0.03° keeps to tables.
 TEST(PendingTables, BendingAtAnyAngle) {
-  constexpr float kBend = 2.4f;
   auto bendingCfg = [](std::vector<std::string> extra) {
     extra.push_back("render.table_adopt_frames=1");
     ServiceConfig c = configWith(std::move(extra));
     c.ego.lamps.at(0).bending = true;
     return c;
   };
-  auto framesOf = [](const ServiceConfig& c, float bending, RenderedFrame& first, RenderedFrame& tables) {
+  // One frame per angle, in lock-step.
+  auto framesOf = [](const ServiceConfig& c, const std::vector<float>& angles, std::vector<RenderedFrame>& frames) {
     auto r = ChannelRenderer::create(c, 0, worldOf(c), nullptr);
     ASSERT_TRUE(r) << r.error().message;
-    ipc::SimSnapshot s = stateWith(0.0f);
-    s.lamps.value.bending_deg = bending;
-    ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, first));
-    for (int k = 0; k < 3; ++k) ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, tables));
-    EXPECT_TRUE(first.pending);
-    EXPECT_FALSE(tables.pending);
+    frames.assign(angles.size(), RenderedFrame{});
+    for (std::size_t k = 0; k < angles.size(); ++k) {
+      ipc::SimSnapshot s = stateWith(0.0f);
+      s.lamps.value.bending_deg = angles[k];
+      ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, frames[k]));
+    }
   };
-  RenderedFrame bentFirst, bent, roundedFirst, rounded, mountedFirst, mounted;
-  framesOf(bendingCfg({}), kBend, bentFirst, bent);
-  framesOf(bendingCfg({"ego.bending_step_deg=1"}), kBend, roundedFirst, rounded);
-  ServiceConfig turned = configWith({"render.table_adopt_frames=1"});
-  SceneLamp& l = turned.ego.lamps.at(0).lamp;
-  l.lamp.worldFromLamp = worldFromYawPitchRoll(radians(static_cast<double>(kBend)), 0.0, 0.0) * l.lamp.worldFromLamp;
-  framesOf(turned, 0.0f, mountedFirst, mounted);
+  auto mountedAt = [&](float deg) {
+    ServiceConfig turned = configWith({"render.table_adopt_frames=1"});
+    SceneLamp& l = turned.ego.lamps.at(0).lamp;
+    l.lamp.worldFromLamp = worldFromYawPitchRoll(radians(static_cast<double>(deg)), 0.0, 0.0) * l.lamp.worldFromLamp;
+    std::vector<RenderedFrame> f;
+    framesOf(turned, {0.0f, 0.0f, 0.0f, 0.0f}, f);
+    EXPECT_FALSE(f.back().pending);
+    return luminance(f.back().layers.airlight);
+  };
   const auto lum = [](const RenderedFrame& f) { return luminance(f.layers.airlight); };
-  const double tablesP95 = p95Relative(lum(bent), lum(mounted));
-  const double pendingP95 = p95Relative(lum(bentFirst), lum(mounted));
-  const double roundedP95 = p95Relative(lum(rounded), lum(mounted));
-  std::printf("bent 2.4° against mounted 2.4°: tables p95 %.2e, pending frame %.2e; rounded to 2°: %.2e\n", tablesP95,
-              pendingP95, roundedP95);
+  const std::vector<double> at24 = mountedAt(2.4f), at243 = mountedAt(2.43f);
+
+  std::vector<RenderedFrame> exact, wide, jitter;
+  framesOf(bendingCfg({}), {2.4f, 2.4f, 2.4f, 2.4f}, exact);
+  EXPECT_TRUE(exact.front().pending);
+  EXPECT_FALSE(exact.back().pending);
+  framesOf(bendingCfg({"ego.bending_tolerance_deg=0.5"}), {2.0f, 2.0f, 2.0f, 2.0f, 2.4f, 2.4f}, wide);
+  EXPECT_FALSE(wide.back().pending);  // 2° tables serve 2.4°
+  framesOf(bendingCfg({}), {2.4f, 2.43f, 2.4f, 2.43f, 2.4f, 2.43f, 2.4f}, jitter);
+  EXPECT_FALSE(jitter[jitter.size() - 2].pending);
+  EXPECT_FALSE(jitter.back().pending);  // 2.4° wanted, served by the 2.43° tables built at frame 2
+
+  const double tablesP95 = p95Relative(lum(exact.back()), at24);
+  const double pendingP95 = p95Relative(lum(exact.front()), at24);
+  const double wideP95 = p95Relative(lum(wide.back()), at24);
+  const double jitterP95 = p95Relative(lum(jitter.back()), at24);
+  const double jitterTablesP95 = p95Relative(lum(jitter.back()), at243);
+  std::printf("bent 2.4° against mounted 2.4°: tables p95 %.2e, pending frame %.2e; 2° tables (tolerance 0.5°) "
+              "%.2e; jittering 2.40/2.43°: %.2e (against mounted 2.43°: %.2e)\n",
+              tablesP95, pendingP95, wideP95, jitterP95, jitterTablesP95);
   EXPECT_LT(tablesP95, 1e-5);
   EXPECT_LT(pendingP95, 0.01);
-  EXPECT_GT(roundedP95, 10.0 * tablesP95 + 1e-3);
+  EXPECT_GT(wideP95, 10.0 * tablesP95 + 1e-3);
+  EXPECT_LT(jitterTablesP95, 1e-5);  // the frame is the 2.43° tables' frame
+  EXPECT_LT(jitterP95, 0.01);
 }
 
 TEST(PendingTables, PreviousWaitsForTheFirstTables) {

@@ -21,8 +21,8 @@
 //  * glow and glare (LampEffects) of the lamps that are on, per frame, on the airlight's pool.
 //  * rig lamps with an aperture become their point lamps once placed (expandRig, placeRigPoint).
 //
-// Tables that depend on the fog and on the ego lamps' bending angle (exact, or rounded to
-// [ego] bending_step_deg) take seconds to build; a change starts a build on a background thread
+// Tables that depend on the fog and on the ego lamps' bending angle (tables for one angle serve
+// angles within [ego] bending_tolerance_deg of it) take seconds to build; a change starts a build on a background thread
 // (RenderedFrame::pending while it is not in use). With [render] pending_tables = "per-pixel"
 // (the default) frames meanwhile evaluate every lamp that is on per pixel, as moving lamps, in
 // the wanted fog and bending, and nothing waits: free-running (`wait` = false) takes a build when

@@ -122,9 +122,10 @@ struct ServiceConfig {
   // [ego]
   Vec3 eye_m{1.3, 0.37, 1.2};
   double bending_max_deg = 15.0;
-  /// The bending angle is rounded to multiples of this for the ego lamps' view tables (each
-  /// angle its own tables); 0 = not rounded (any angle, continuous), deg.
-  double bending_step_deg = 0.0;
+  /// View tables built for one bending angle serve frames whose angle is within this of it;
+  /// beyond it a frame shows its exact angle per pixel until tables for that angle are in use
+  /// (a bending signal that jitters by less than this does not keep frames per pixel), deg.
+  double bending_tolerance_deg = 0.05;
   VehicleRig ego;
 
   /// By class; class 0 stands in for classes without a rig.
