@@ -13,7 +13,10 @@
 // Spokes sit at `spokes` evenly spaced azimuths φ about the eye→lamp axis; a ray blends the
 // two spokes around its own azimuth linearly (the nearest alone moves its direction by up to
 // sin α · π / spokes, α the ray's angle from the lamp's direction, which at the sharp edges
-// of a low beam's pattern costs 1 % at the 95th percentile; the blend is second order).
+// of a low beam's pattern costs 1 % at the 95th percentile; the blend is second order). An
+// image evaluator samples fewer: a plan of every 16th spoke, halved where rays would read the
+// blend of an interval's ends wrongly (coarseStep(), middleDiffers(), setLeaf()); its rays
+// then blend the two ends of their interval.
 // The per-spoke pieces follow the accurate method: breakpoints at the profile's feature kinks
 // and the edge of its support cone, and at the multiples of `piece_deg` (shared by all spokes,
 // so that a blend of two spokes costs one pass); quadratic through both ends and the middle.
