@@ -59,11 +59,6 @@ class PsiBasis {
   [[nodiscard]] double local(int j, double psi) const noexcept {
     return (psi - knots_[static_cast<std::size_t>(j)]) * invStep_[static_cast<std::size_t>(j)];
   }
-  /// ∫_0^π β_r dψ = (τ_{r+4} − τ_r) / 4, τ the padded knots (radians): the smoothing width of
-  /// a projection ∫ β_r I dψ, which divided by it is a local mean of I.
-  [[nodiscard]] double integral(int r) const noexcept {
-    return 0.25 * (padded_[static_cast<std::size_t>(r) + 4] - padded_[static_cast<std::size_t>(r)]);
-  }
 
  private:
   void deBoor(int j, double psi, double b[4]) const noexcept;
@@ -94,6 +89,10 @@ class KernelTable {
     const float* row[4];  ///< the four nodes' coefficient rows (functions() floats each)
     float w[4];           ///< their bilinear weights
     int cut;              ///< the expansion holds on [0, knot(cut)] (the smallest of the four nodes')
+    /// u_r at the looked-up (γ, τ): the nodes' rows blended.
+    [[nodiscard]] float coefficient(int r) const noexcept {
+      return w[0] * row[0][r] + w[1] * row[1][r] + w[2] * row[2][r] + w[3] * row[3][r];
+    }
   };
   [[nodiscard]] Lookup lookup(double gamma, double tau) const noexcept { return lookupAt(gamma, tauPosition(tau)); }
   /// τ's position on the table's axis (a pencil's rays share one τ: computed once).

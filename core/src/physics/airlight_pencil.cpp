@@ -80,10 +80,7 @@ void PencilAirlight::reset(const Vec3& eye) {
     for (double deg = 0.25; deg <= 128.0; deg *= 2.0) {
       const detail::KernelTable::Lookup lk = kernel_->lookupAt(radians(deg), tauPosition_);
       const int cut = std::min(nf, lk.cut + 3);
-      for (int r = 0; r < nf; ++r)
-        testRows_.push_back(r < cut ? lk.w[0] * lk.row[0][r] + lk.w[1] * lk.row[1][r] + lk.w[2] * lk.row[2][r] +
-                                          lk.w[3] * lk.row[3][r]
-                                    : 0.0f);
+      for (int r = 0; r < nf; ++r) testRows_.push_back(r < cut ? lk.coefficient(r) : 0.0f);
       testCut_.push_back(cut);
     }
   }
@@ -145,8 +142,11 @@ void PencilAirlight::setLeaf(int a, int w) {
 
 PencilAirlight::SpokePair PencilAirlight::spokesOf(const Vec3& direction) const noexcept {
   if (negligible_ || !(distance_ > 1e-6)) return {};  // nothing to integrate, or per ray (eye at the lamp)
-  const Vec3 perp = direction - glm::dot(direction, e0_) * e0_;
-  return spokesAt(std::atan2(glm::dot(perp, e2_), glm::dot(perp, e1_)));  // φ = 0 on the axis itself: any spoke
+  return spokesAt(azimuthOf(direction - glm::dot(direction, e0_) * e0_));
+}
+
+double PencilAirlight::azimuthOf(const Vec3& perp) const noexcept {
+  return std::atan2(glm::dot(perp, e2_), glm::dot(perp, e1_));  // 0 on the axis itself: any spoke
 }
 
 PencilAirlight::SpokePair PencilAirlight::spokesAt(double phi) const noexcept {
@@ -471,7 +471,7 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   const Vec3 perp = direction - c * e0_;
   const double sa = glm::length(perp);                     // sin α
   const double alpha = std::atan2(sa, c);
-  const SpokePair sp = distance_ > 1e-6 ? spokesAt(std::atan2(glm::dot(perp, e2_), glm::dot(perp, e1_))) : SpokePair{};
+  const SpokePair sp = distance_ > 1e-6 ? spokesAt(azimuthOf(perp)) : SpokePair{};
   const double kt = ev.medium().extinction_per_m;
   const double h = distance_ * sa, p = distance_ * c;      // eq. (3): lamp–ray distance, foot
   const detail::GMomentTable& g = *ev.tables_->g;
@@ -507,7 +507,7 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
     const double cutPsi = basis.knot(lk.cut);
     const int needed = std::min(nf, basis.interval(std::min(cutPsi, psiEnd)) + 4);
     float u[kMaxFunctions];
-    for (int r = 0; r < needed; ++r) u[r] = lk.w[0] * lk.row[0][r] + lk.w[1] * lk.row[1][r] + lk.w[2] * lk.row[2][r] + lk.w[3] * lk.row[3][r];
+    for (int r = 0; r < needed; ++r) u[r] = lk.coefficient(r);
     for (int r = needed; r < std::min(nf, kMaxFunctions); ++r) u[r] = 0.0f;
     const double scaleFit = ev.medium().albedo * kt / h * std::exp(-tau);
     std::size_t firstTail = n;

@@ -124,6 +124,8 @@ class PencilAirlight {
   [[nodiscard]] SpokePair spokesOf(const Vec3& direction) const noexcept;
   /// The spokes around azimuth φ (radians, [−π, π]) about the eye→lamp axis.
   [[nodiscard]] SpokePair spokesAt(double phi) const noexcept;
+  /// φ of a ray whose part perpendicular to the eye→lamp axis is `perp`.
+  [[nodiscard]] double azimuthOf(const Vec3& perp) const noexcept;
   void ensureSpoke(int s) const;
   void sampleSpoke(int s) const;
   void mergeSmoothPieces(std::vector<Piece>& pieces) const;
