@@ -70,6 +70,7 @@ void PencilAirlight::reset(const Vec3& eye) {
   leafW_.assign(static_cast<std::size_t>(spokeCount_), 0);
   leafA_.resize(static_cast<std::size_t>(spokeCount_));
   tau_ = lamp_->medium().extinction_per_m * distance_;
+  expNegTau_ = std::exp(-tau_);
   tauPosition_ = kernel_ ? kernel_->tauPosition(tau_) : 0.0;
   // The adaptive plan's test rays (middleDiffers): the expansion's coefficients at angles γ
   // from the lamp's direction of 0.25° to 128° (doubling), this τ, up to each one's cut.
@@ -509,7 +510,7 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
     float u[kMaxFunctions];
     for (int r = 0; r < needed; ++r) u[r] = lk.coefficient(r);
     for (int r = needed; r < std::min(nf, kMaxFunctions); ++r) u[r] = 0.0f;
-    const double scaleFit = ev.medium().albedo * kt / h * std::exp(-tau);
+    const double scaleFit = ev.medium().albedo * kt / h * (tau == tau_ ? expNegTau_ : std::exp(-tau));
     std::size_t firstTail = n;
     for (std::size_t m = 0; m < n; ++m) {
       if (!(distances[m] > 0.0)) {

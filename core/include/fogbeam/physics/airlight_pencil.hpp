@@ -58,7 +58,7 @@ struct PencilOptions {
   /// rays ending at every knot of the expansion) read the blend of the two within this
   /// fraction of their own value or of 1 % of the largest such value. 0 = every spoke (needs
   /// kernel_expansion; without it every spoke is sampled).
-  double spoke_tolerance = 1e-3;
+  double spoke_tolerance = 2e-3;
 };
 
 namespace detail {
@@ -143,6 +143,7 @@ class PencilAirlight {
   Vec3 e0_{1, 0, 0}, e1_{0, 1, 0}, e2_{0, 0, 1};  // eye→lamp axis and two normals (world)
   double distance_ = 0.0;                          // |S − O|, metres
   double tau_ = 0.0, tauPosition_ = 0.0;           // K_t |S − O| at reset() and its kernel-table position
+  double expNegTau_ = 1.0;                         // e^{−τ}, the expansion's scale (once per pencil, not per ray)
   bool negligible_ = false;
   // Per spoke: its pieces and its state (0 not sampled, 1 being sampled, 2 ready). Filled
   // lazily from const evaluation calls, hence mutable; the state orders the accesses.

@@ -25,10 +25,13 @@
 // one colour summed into one table), by Highway kernels. Measured and spot lamps fixed in the
 // world or on other vehicles go per pixel through the pencil integrator (airlight_pencil.hpp)
 // or per ray (MovingLampPath). With the pencil, the spokes a frame's rays read are planned and
-// sampled on all threads before the pixels (adaptively: PencilOptions::spoke_tolerance), and in
-// a block split for another reason a moving lamp whose own light is smooth there is
-// interpolated instead of evaluated (half the block tolerance shared among the moving lamps;
-// AirlightImage::moving_evaluated counts the pairs evaluated).
+// sampled on all threads before the pixels (adaptively: PencilOptions::spoke_tolerance); the
+// coarse grid evaluates them at a lattice twice as coarse and interpolates them where their own
+// light is smooth there (SubsamplingOptions::moving_lattice); and in a block split for another
+// reason a moving lamp whose own light is smooth there is interpolated instead of evaluated,
+// across a distance edge in the centre's layer only (moving_layers). Each such test grants the
+// lamp half the block tolerance shared among the moving lamps; AirlightImage::moving_evaluated
+// counts the pairs evaluated.
 //
 // Thread-safety: one evaluate() at a time per AirlightImageEvaluator.
 #pragma once
@@ -65,6 +68,17 @@ struct SubsamplingOptions {
   /// ignored (what lies behind them is dimmed below it); 0 keeps every edge.
   double edge_transmittance = 0.005;
   int lamp_guard_px = 2;      ///< blocks within this many pixels of a lamp's image are split
+  /// Moving lamps (pencil path) on a lattice twice as coarse as the coarse grid: evaluated at
+  /// the corners and centres of super-cells of 2 × 2 coarse blocks, and interpolated over a
+  /// super-cell where its centre matches its corners (the block test, with the lamp's share of
+  /// the tolerance), no lamp is imaged in it and its coarse nodes and block centres lie in one
+  /// distance layer. false: every coarse node and block centre evaluates every moving lamp.
+  bool moving_lattice = true;
+  /// Moving lamps in a block split across a distance edge (a silhouette): interpolated in the
+  /// centre's layer where the lamp's value there matches the prediction from the corners in that
+  /// layer (the block test, with the lamp's share of the tolerance); pixels of other layers are
+  /// evaluated. false: every pixel such a split adds evaluates every moving lamp.
+  bool moving_layers = true;
 };
 
 /// How measured and spot lamps that move relative to the eye (fixed in the world or on other
