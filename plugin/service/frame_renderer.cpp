@@ -174,6 +174,13 @@ struct ChannelRenderer::Impl {
   std::vector<float> glow, glare;
 
   std::unique_ptr<AirlightImageEvaluator> eval;  ///< tables for `current`
+  /// Pending frames' evaluator of the world and ego lamps (every one treated as moving: per
+  /// pixel), kept from frame to frame: each frame gives it the frame's fog (setFog, while the
+  /// phase function stays) and poses. Its pencils keep the spokes of lamps whose pose relative
+  /// to the eye holds (the ego's lamps while they do not bend), which are most of a per-pixel
+  /// frame's cost; rebuilt when the phase function changes.
+  std::unique_ptr<AirlightImageEvaluator> pendingEval;
+  std::vector<char> lampOn;  ///< this frame, per lamp of the frame's scene: switched on
   TableKey current;
   std::future<Result<AirlightImageEvaluator>> building;  ///< tables for `next`, off the frame thread
   TableKey next;
@@ -210,7 +217,7 @@ struct ChannelRenderer::Impl {
   [[nodiscard]] std::uint32_t trafficLamps(const ipc::SimSnapshot& state, ipc::Clock::time_point now, Scene& traffic,
                                            Scene& lit) const;
   [[nodiscard]] Status renderSurfaces(const Scene& lit, double& gpuAirlightMs);
-  [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, const Scene& lit, RenderedFrame& out);
+  [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out);
   [[nodiscard]] Status renderEffects(const Scene& lit, const TableKey& key, RenderedFrame& out, EffectLayers& layers);
   void compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out);
 
@@ -373,11 +380,13 @@ Status ChannelRenderer::Impl::egoAndWorldLamps(std::uint32_t lights, const Scene
     if (Status s = eval->setLampPoses(scene); !s) return s;
   }
   const std::size_t worldCount = world.lamps.size();
+  lampOn.assign(scene.lamps.size(), 0);
   for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
     // All points of an aperture lamp switch together: by their rig lamp's light bit.
     const std::uint32_t bit = i < worldCount ? 0u : config->ego.lamps[egoPoints[i - worldCount].rig_lamp].light_bit;
     const bool on = bit == 0 || (lights & bit) != 0;
     if (useTables) eval->setLampEnabled(i, on);
+    lampOn[i] = on ? 1 : 0;
     if (on) lit.lamps.push_back(scene.lamps[i]);
   }
   return Ok{};
@@ -420,7 +429,7 @@ Status ChannelRenderer::Impl::renderSurfaces(const Scene& lit, double& gpuAirlig
   return Ok{};
 }
 
-Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& traffic, const Scene& lit,
+Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& traffic,
                                              RenderedFrame& out) {
   out.traffic_evaluated = 0;
   if (gpuAirlight) {
@@ -432,27 +441,31 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
     return Ok{};
   }
   if (!useTables) {
-    // Tables pending ([render] pending_tables = "per-pixel"): every lamp that is on, the ego's
-    // among them, as a lamp that moves relative to the eye (the pencil, maps or per ray:
-    // [render] moving_lamps), in this frame's fog and bending. Per-lamp tables (profiles, F and
-    // G tables) come from the evaluators' caches; nothing here depends on the view tables.
+    // Tables pending ([render] pending_tables = "per-pixel"): the world and ego lamps that are
+    // on, the ego's as lamps that move relative to the eye (the pencil, maps or per ray:
+    // [render] moving_lamps), in this frame's fog and bending; traffic below, as in frames
+    // with tables. Per-lamp tables (profiles, F and G tables) come from the evaluators' caches;
+    // nothing here depends on the view tables.
     Scene all = scene;
-    all.lamps = lit.lamps;
     for (SceneLamp& l : all.lamps) l.mount = LampMount::World;
-    auto fe = AirlightImageEvaluator::build(all, method, AirlightOptions{}, framePool, fast);
-    if (!fe) return fe.error();
-    fe->evaluate(all, surface, subsampling, air);
-    out.airlight_evaluated = air.evaluated;
-    return Ok{};
+    const bool kept = pendingEval && pendingEval->setFog(all.fog) && pendingEval->setLampPoses(all);
+    if (!kept) {
+      auto fe = AirlightImageEvaluator::build(all, method, AirlightOptions{}, framePool, fast);
+      if (!fe) return fe.error();
+      pendingEval = std::make_unique<AirlightImageEvaluator>(std::move(fe).value());
+    }
+    for (std::size_t i = 0; i < all.lamps.size(); ++i) pendingEval->setLampEnabled(i, lampOn[i] != 0);
+    pendingEval->evaluate(all, surface, subsampling, air);
+  } else {
+    // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
+    eval->evaluate(scene, surface, subsampling, air);
   }
-  // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
-  eval->evaluate(scene, surface, subsampling, air);
   out.airlight_evaluated = air.evaluated;
   if (!traffic.lamps.empty()) {
     // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
     // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
     // per-lamp tables come from the evaluators' caches, the pool is the frame's.
-    auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, eval->pool(), fast);
+    auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, useTables ? eval->pool() : framePool, fast);
     if (!te) return te.error();
     te->evaluate(traffic, surface, subsampling, trafficAir);
     out.traffic_evaluated = trafficAir.evaluated;
@@ -541,7 +554,7 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
 
   // 4. Airlight.
   const auto tA = Clock::now();
-  if (Status s = m.renderAirlight(scene, traffic, lit, out); !s) return s;
+  if (Status s = m.renderAirlight(scene, traffic, out); !s) return s;
 
   // 5. Glow and glare.
   const auto tF = Clock::now();

@@ -299,6 +299,47 @@ TEST(AirlightImage, MovingLampsAcrossSilhouettes) {
   EXPECT_LE(layP95, everyP95 + 2e-3);
 }
 
+// A fog that changes every frame (AirlightImageEvaluator::setFog): the ego's low beams going
+// per pixel through the pencil (as in a frame whose view tables are pending), the car moving.
+// The evaluator kept from frame to frame shows the new fog exactly as one built for it, and the
+// ego lamps' spokes, which depend on their pose relative to the eye and not on the fog, are
+// kept: the second frame samples only the car's.
+TEST(AirlightImage, AFogChangeKeepsTheSpokesOfLampsFixedToTheEye) {
+  Scene scene = nightRoad(128, 72);
+  for (SceneLamp& l : scene.lamps) l.mount = LampMount::World;  // every measured lamp per pixel
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  auto kept = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, testFastPath());
+  ASSERT_TRUE(kept.has_value());
+  AirlightImage first, second, fresh;
+  kept->evaluate(scene, surf, SubsamplingOptions{}, first);
+  // The next frame: thicker fog, the car 0.5 m nearer, the ego (eye and lamps together) 0.5 m on.
+  Scene next = scene;
+  next.fog.extinction_per_m *= 1.05;
+  next.fog.albedo = 0.9;
+  for (std::size_t i : {2u, 3u}) next.lamps[i].lamp.position_m.x -= 0.5;
+  for (std::size_t i : {0u, 1u}) next.lamps[i].lamp.position_m.x += 0.5;
+  next.camera.position_m.x += 0.5;
+  ASSERT_TRUE(kept->setFog(next.fog));
+  ASSERT_TRUE(kept->setLampPoses(next));
+  kept->evaluate(next, surf, SubsamplingOptions{}, second);
+  auto built = AirlightImageEvaluator::build(next, AirlightMethod::Accurate, {}, 0, testFastPath());
+  ASSERT_TRUE(built.has_value());
+  built->evaluate(next, surf, SubsamplingOptions{}, fresh);
+  const auto [p95, mx] = imageError(second, fresh);
+  std::printf("spokes: first frame %zu sampled; next frame %zu sampled, %zu kept (a new evaluator: %zu); kept vs "
+              "new evaluator p95 %.2e max %.2e\n",
+              first.spokes, second.spokes, second.spokes_kept, fresh.spokes, p95, mx);
+  EXPECT_GT(second.spokes_kept, fresh.spokes / 3);
+  EXPECT_LT(second.spokes, fresh.spokes * 2 / 3);
+  EXPECT_LE(p95, 1e-5);
+  EXPECT_LE(mx, 1e-4);
+  // Another phase function needs other tables: refused, the evaluator unchanged.
+  Medium mie = next.fog;
+  mie.phase = makeHenyeyGreenstein(0.7).value();
+  EXPECT_FALSE(kept->setFog(mie));
+}
+
 // How well a fog between two tabulated fogs is shown by blending their images (the way a fog
 // that changes every frame could keep to table frames: docs/airlight.md, "What is left"): the
 // ego's low beams and the street lamp at K_t, against tables built at K_t itself, for brackets

@@ -431,6 +431,14 @@ void AirlightEvaluator::setPose(const Vec3& position_m, const Mat3& worldFromLam
   lampFromWorld_ = glm::transpose(worldFromLamp);
 }
 
+Status AirlightEvaluator::setMedium(const Medium& medium) {
+  if (Status s = medium.validate(); !s) return s.error();
+  if (!(phaseIdentity(medium.phase) == phaseIdentity(medium_.phase)))
+    return Error{"setMedium: another phase function needs other tables (build a new evaluator)"};
+  medium_ = medium;
+  return Ok{};
+}
+
 void AirlightEvaluator::evaluateCumulative(const Ray& ray, const double* distances, std::size_t n,
                                            double* out) const {
   const double kt = medium_.extinction_per_m;

@@ -60,13 +60,31 @@ void PencilAirlight::reset(const Vec3& eye) {
   const Vec3 d = lamp_->lamp().position_m - eye;
   distance_ = glm::length(d);
   negligible_ = lamp_->medium().extinction_per_m * distance_ > kMaxOpticalDistance;
+  // The spokes' frame is fixed to the lamp: the axis towards it and two normals chosen in the
+  // lamp's own coordinates, so that a lamp that keeps its pose relative to the eye (a vehicle's
+  // own lamp, the vehicle moving) has the same spokes, whatever the vehicle's heading.
+  bool sameSpokes = false;
   if (distance_ > 0.0) {
     e0_ = d / distance_;
-    const Vec3 a = std::abs(e0_.x) < 0.6 ? Vec3(1, 0, 0) : (std::abs(e0_.y) < 0.6 ? Vec3(0, 1, 0) : Vec3(0, 0, 1));
-    e1_ = glm::normalize(glm::cross(e0_, a));
-    e2_ = glm::cross(e0_, e1_);
+    const Mat3& worldFromLamp = lamp_->lamp().worldFromLamp;
+    const Vec3 e0L = lamp_->lampFromWorld_ * e0_;
+    const Vec3 a = std::abs(e0L.x) < 0.6 ? Vec3(1, 0, 0) : (std::abs(e0L.y) < 0.6 ? Vec3(0, 1, 0) : Vec3(0, 0, 1));
+    const Vec3 e1L = glm::normalize(glm::cross(e0L, a));
+    e1_ = worldFromLamp * e1L;
+    e2_ = worldFromLamp * glm::cross(e0L, e1L);
+    // Spokes depend on the profile and on this axis in the lamp's frame alone (not on the
+    // distance or the fog: those enter per ray). Within 1e-9 (rounding of poses recomputed
+    // from world coordinates every frame) the sampled ones are kept.
+    constexpr double kSameAxis = 1e-9;
+    sameSpokes = spokesValid_ && std::abs(e0L.x - spokeAxis_.x) <= kSameAxis &&
+                 std::abs(e0L.y - spokeAxis_.y) <= kSameAxis && std::abs(e0L.z - spokeAxis_.z) <= kSameAxis;
+    if (!sameSpokes) spokeAxis_ = e0L;
+    spokesValid_ = true;
+  } else {
+    spokesValid_ = false;
   }
-  for (int s = 0; s < spokeCount_; ++s) state_[static_cast<std::size_t>(s)].store(0, std::memory_order_relaxed);
+  if (!sameSpokes)
+    for (int s = 0; s < spokeCount_; ++s) state_[static_cast<std::size_t>(s)].store(0, std::memory_order_relaxed);
   leafW_.assign(static_cast<std::size_t>(spokeCount_), 0);
   leafA_.resize(static_cast<std::size_t>(spokeCount_));
   tau_ = lamp_->medium().extinction_per_m * distance_;
@@ -169,17 +187,18 @@ PencilAirlight::SpokePair PencilAirlight::spokesAt(double phi) const noexcept {
   return sp;
 }
 
-void PencilAirlight::ensureSpoke(int s) const {
+bool PencilAirlight::ensureSpoke(int s) const {
   std::atomic<int>& st = state_[static_cast<std::size_t>(s)];
-  if (st.load(std::memory_order_acquire) == 2) return;
+  if (st.load(std::memory_order_acquire) == 2) return false;
   int expected = 0;
   if (st.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) {
     sampleSpoke(s);
     st.store(2, std::memory_order_release);
-    return;
+    return true;
   }
   // Another thread samples it: a spoke takes ~10–30 µs.
   while (st.load(std::memory_order_acquire) != 2) std::this_thread::yield();
+  return false;
 }
 
 void PencilAirlight::sampleSpoke(int s) const {

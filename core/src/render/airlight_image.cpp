@@ -6,6 +6,7 @@
 #include <fogbeam/render/airlight_kernels.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -132,6 +133,7 @@ struct AirlightImageEvaluator::State {
     const AirlightEvaluator* lamp = nullptr;
     Vec3 eye{0.0}, position{0.0};
     Mat3 axes{1.0};
+    double kt = 0.0, albedo = 0.0;  // the fog (setFog): a pencil's per-fog state follows it
   };
   std::vector<PencilKey> pencilKeys;
   std::vector<float> pencilLum;  // per pencilLamps entry: r + g + b of its colour (block tests)
@@ -258,6 +260,16 @@ Status AirlightImageEvaluator::setLampPoses(const Scene& scene) {
                  std::to_string(lamps_.size())};
   for (std::size_t i = 0; i < lamps_.size(); ++i)
     lamps_[i].setPose(scene.lamps[i].lamp.position_m, scene.lamps[i].lamp.worldFromLamp);
+  return Ok{};
+}
+
+Status AirlightImageEvaluator::setFog(const Medium& fog) {
+  if (Status s = fog.validate(); !s) return s.error();
+  for (const AirlightEvaluator& ev : lamps_)
+    if (!(phaseIdentity(ev.medium().phase) == phaseIdentity(fog.phase)))
+      return Error{"setFog: another phase function needs other tables (build a new evaluator)"};
+  for (AirlightEvaluator& ev : lamps_)
+    if (Status s = ev.setMedium(fog); !s) return s;  // cannot fail after the checks above
   return Ok{};
 }
 
@@ -1303,10 +1315,11 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
   st.pencilKeys.resize(st.pencilLamps.size());
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
     const AirlightEvaluator& ev = lamps[st.pencilLamps[q]];
-    const State::PencilKey key{&ev, cam.position_m, ev.lamp().position_m, ev.lamp().worldFromLamp};
+    const State::PencilKey key{&ev, cam.position_m, ev.lamp().position_m, ev.lamp().worldFromLamp,
+                               ev.medium().extinction_per_m, ev.medium().albedo};
     State::PencilKey& old = st.pencilKeys[q];
     const bool same = st.pencils[q] && old.lamp == key.lamp && old.eye == key.eye && old.position == key.position &&
-                      old.axes == key.axes;
+                      old.axes == key.axes && old.kt == key.kt && old.albedo == key.albedo;
     if (same) continue;
     if (st.pencils[q] && old.lamp == key.lamp) {
       st.pencils[q]->reset(cam.position_m);
@@ -1330,8 +1343,10 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
 // its ends wrongly (PencilAirlight::middleDiffers), level by level down to single spokes
 // (measured on the traffic bench at 1280×720: 2 188 of the 5 760 spokes the four oncoming low
 // beams read, 40 → ~17 ms a frame, the image's error against per ray unchanged). Returns the
-// spokes sampled.
-std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool) {
+// spokes sampled this frame; `kept` counts those the plan read that an earlier frame sampled
+// (a pencil keeps them while the lamp's pose relative to the eye holds: PencilAirlight::reset).
+std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool, std::size_t& kept) {
+  kept = 0;
   if (st.fast.moving_lamps != MovingLampPath::Pencil) return 0;
   std::size_t sampled = 0;
   st.spokeJobs.clear();
@@ -1391,11 +1406,13 @@ std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool) {
     if (st.spokeJobs.empty()) return;
     std::sort(st.spokeJobs.begin(), st.spokeJobs.end());  // interval ends are shared
     st.spokeJobs.erase(std::unique(st.spokeJobs.begin(), st.spokeJobs.end()), st.spokeJobs.end());
-    sampled += st.spokeJobs.size();
+    std::atomic<std::size_t> fresh{0};
     pool.parallelFor(st.spokeJobs.size(), [&](std::size_t k) {
       const auto& [q, spoke] = st.spokeJobs[k];
-      st.pencils[q]->prepareSpoke(spoke);
+      if (st.pencils[q]->prepareSpoke(spoke)) fresh.fetch_add(1, std::memory_order_relaxed);
     });
+    sampled += fresh.load();
+    kept += st.spokeJobs.size() - fresh.load();
     st.spokeJobs.clear();
   };
   for (const auto& iv : st.spokeIntervals) {
@@ -1783,7 +1800,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   out.view_tables_loaded = st.tablesLoaded;
   if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
   refreshPencils(st, lamps_, cf.cam);
-  out.spokes = sampleSpokes(st, cf.cam, *pool_);
+  out.spokes = sampleSpokes(st, cf.cam, *pool_, out.spokes_kept);
   refreshLampMaps(st, cf.cam, surface, opt, scene.fog.extinction_per_m, *pool_);
   out.map_seconds = st.mapSeconds;
   out.map_nodes = st.mapNodes;

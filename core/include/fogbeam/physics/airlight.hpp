@@ -105,6 +105,12 @@ class AirlightEvaluator {
   /// Not thread-safe with evaluate().
   void setPose(const Vec3& position_m, const Mat3& worldFromLamp) noexcept;
 
+  /// Another fog with the same phase function (its tables depend on the phase alone, the
+  /// extinction and albedo enter per ray): a fog that changes every frame keeps the evaluator.
+  /// Errors: an invalid medium, or another phase function (then build a new evaluator).
+  /// Not thread-safe with evaluate().
+  [[nodiscard]] Status setMedium(const Medium& medium);
+
   [[nodiscard]] AirlightMethod method() const noexcept { return method_; }
   [[nodiscard]] const TableStats& stats() const noexcept { return stats_; }
   [[nodiscard]] const Lamp& lamp() const noexcept { return lamp_; }

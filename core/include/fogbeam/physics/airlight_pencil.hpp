@@ -74,8 +74,11 @@ class PencilAirlight {
   /// The option checks of build(), without building anything.
   [[nodiscard]] static Status validate(const PencilOptions& options);
 
-  /// Starts over from a new eye position, and takes the lamp evaluator's current pose (a
-  /// moving lamp): spokes are sampled again as needed; their memory is kept.
+  /// Starts over from a new eye position, and takes the lamp evaluator's current pose and fog
+  /// (a moving lamp, a fog that changed: AirlightEvaluator::setMedium): spokes are sampled
+  /// again as needed, unless the direction from the eye to the lamp is the same in the lamp's
+  /// frame (within 1e-9: a vehicle's own lamp seen from its driver), whose spokes are kept (they
+  /// do not depend on the distance or the fog); their memory is kept either way.
   void reset(const Vec3& eye);
 
   [[nodiscard]] int spokeCount() const noexcept { return spokeCount_; }
@@ -83,8 +86,9 @@ class PencilAirlight {
   /// next one), or −1 when rays go per ray (the lamp negligible, the eye at the lamp).
   [[nodiscard]] int spokeOf(const Vec3& direction) const noexcept { return spokesOf(direction).s0; }
   /// Samples spoke s now if no ray has yet (thread-safe like evaluate()): an image evaluator
-  /// samples the spokes a frame needs on all threads before its rays read them.
-  void prepareSpoke(int s) const { ensureSpoke(s); }
+  /// samples the spokes a frame needs on all threads before its rays read them. True when this
+  /// call sampled it (false: sampled before, possibly kept from an earlier frame by reset()).
+  bool prepareSpoke(int s) const { return ensureSpoke(s); }
 
   // Adaptive spokes. An image evaluator that knows which azimuths its rays take samples every
   // coarseStep()-th spoke there, then halves each interval [a, a + w] whose middle spoke is not
@@ -126,7 +130,7 @@ class PencilAirlight {
   [[nodiscard]] SpokePair spokesAt(double phi) const noexcept;
   /// φ of a ray whose part perpendicular to the eye→lamp axis is `perp`.
   [[nodiscard]] double azimuthOf(const Vec3& perp) const noexcept;
-  void ensureSpoke(int s) const;
+  bool ensureSpoke(int s) const;  // true when this call sampled it
   void sampleSpoke(int s) const;
   void mergeSmoothPieces(std::vector<Piece>& pieces) const;
   void integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights, const double* psi,
@@ -141,6 +145,8 @@ class PencilAirlight {
   int spokeCount_ = 0;
   Vec3 eye_{0.0};
   Vec3 e0_{1, 0, 0}, e1_{0, 1, 0}, e2_{0, 0, 1};  // eye→lamp axis and two normals (world)
+  Vec3 spokeAxis_{0.0};                            // e0_ in the lamp's frame when the spokes were cleared
+  bool spokesValid_ = false;                       // spokeAxis_ holds the sampled spokes' axis
   double distance_ = 0.0;                          // |S − O|, metres
   double tau_ = 0.0, tauPosition_ = 0.0;           // K_t |S − O| at reset() and its kernel-table position
   double expNegTau_ = 1.0;                         // e^{−τ}, the expansion's scale (once per pencil, not per ray)

@@ -134,7 +134,8 @@ struct AirlightImage {
   std::string table_cache_error;       ///< the last failure to write the table cache (empty: none)
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
-  std::size_t spokes = 0;        ///< moving lamps' spokes sampled before the pixels (pencil path)
+  std::size_t spokes = 0;        ///< moving lamps' spokes sampled before the pixels this frame (pencil path)
+  std::size_t spokes_kept = 0;   ///< spokes the frame's rays read that were kept from an earlier frame (PencilAirlight::reset)
   /// (pixel, moving lamp) pairs evaluated; the others of the evaluated pixels were interpolated
   /// lamp by lamp where that lamp's light is smooth (pencil path, subsampled)
   std::size_t moving_evaluated = 0;
@@ -168,6 +169,15 @@ class AirlightImageEvaluator {
   [[nodiscard]] Status setLampPoses(const Scene& scene);
   /// Switches lamp `index` (scene order) on or off for the following frames (lamp switching).
   void setLampEnabled(std::size_t index, bool on);
+  /// Another fog with the same phase function, for the next evaluate(): each lamp's evaluator
+  /// takes it (AirlightEvaluator::setMedium), and the tables that depend on the extinction or
+  /// albedo follow at the next frame (isotropic lamps' sky tables, vehicle lamps' view tables,
+  /// the pencils' per-fog state). A pencil keeps the spokes it has sampled: they depend on the
+  /// lamp's profile and its pose relative to the eye, not on the fog, so a fog that changes
+  /// every frame costs what a steady fog does for lamps fixed to the eye that go per pixel.
+  /// Errors: an invalid medium or another phase function (build a new evaluator); the
+  /// evaluator is then unchanged. Not thread-safe with evaluate().
+  [[nodiscard]] Status setFog(const Medium& fog);
 
   /// Sum over lamps of colour × L_m for one ray (cd/m² per channel), every lamp through the
   /// per-ray evaluator of the method (no tables): the definition the fast path is tested against.
