@@ -64,6 +64,10 @@ struct Scratch {
   // evaluateBatch adds only the moving lamps (pencil path) of `ml`: the coarse lattice's second
   // pass (evaluateCoarseGrid), whose pixels have every other lamp already.
   bool movingOnly = false;
+  // grantBudget's per-lamp working memory (FrameCtx::nq entries).
+  std::vector<float> dev;
+  std::vector<std::uint32_t> order;
+  std::vector<std::uint8_t> grant;
   // Figures of this frame (thread time).
   std::size_t evaluated = 0, movingEvaluated = 0;
   double evalSeconds = 0.0, judgeSeconds = 0.0, fillSeconds = 0.0;
@@ -825,10 +829,40 @@ float superBilinear(const FrameCtx& f, const AirlightImageEvaluator::State& st, 
   return (1 - v) * ((1 - u) * at(c0, r0) + u * at(c0 + 2, r0)) + v * ((1 - u) * at(c0, r0 + 2) + u * at(c0 + 2, r0 + 2));
 }
 
+// The share of a block's tolerance (of its centre's whole luminance) that the moving lamps
+// interpolated over it may miss together, on top of the block test's own: a quarter.
+constexpr float kMovingShare = 0.25f;
+
+// Which moving lamps may be interpolated over a block: dev[q] is what interpolating lamp q would
+// miss at the block's centre (its value there against the prediction from the corners, in
+// luminance; NaN or +inf: it may not be), `total` the error the block grants the moving lamps
+// together (kMovingShare of its tolerance). Lamps are granted in order of their deviation,
+// smallest first, while the deviations granted sum to at most `total`: a lamp whose light is
+// flat there (a far car, a lamp behind a silhouette) leaves what it does not need to the others.
+// Measured on the traffic bench (four moving low beams, 1280×720): equal shares of half the
+// tolerance (0.125 each) 142 k (pixel, lamp) evaluations; granted from a quarter, 133 k, the
+// error against per ray p95 4.0e-3 → 4.3e-3; granted from a half, 114 k, but the 128×72 test
+// image against the reference went from p95 9.5e-3 to 1.06e-2. grant[q] = 1 for those granted.
+void grantBudget(Scratch& sc, std::size_t nq, float total) {
+  std::size_t n = 0;
+  for (std::size_t q = 0; q < nq; ++q) {
+    sc.grant[q] = 0;
+    if (sc.dev[q] <= total) sc.order[n++] = static_cast<std::uint32_t>(q);  // false for NaN
+  }
+  std::sort(sc.order.begin(), sc.order.begin() + static_cast<std::ptrdiff_t>(n),
+            [&](std::uint32_t a, std::uint32_t b) { return sc.dev[a] < sc.dev[b]; });
+  float used = 0.0f;
+  for (std::size_t k = 0; k < n; ++k) {
+    used += sc.dev[sc.order[k]];
+    if (used > total) break;
+    sc.grant[sc.order[k]] = 1;
+  }
+}
+
 // A block split for the whole image's sake (no lamp image in it) may still be smooth in one
 // moving lamp's light: where the lamp's own value at the centre is the bilinear prediction from
-// the corners within half the block tolerance (of the whole pixel's luminance, which is what the
-// tolerance bounds) divided among the moving lamps, the lamp is interpolated over the block's
+// the corners within what grantBudget grants it of a quarter of the block tolerance (of the whole
+// pixel's luminance, which is what the tolerance bounds), the lamp is interpolated over the block's
 // pixels not yet known instead of evaluated at each (the same test, and the same fill, the whole
 // image gets; a moving lamp's light is smooth away from its image and cut-off, and a pixel costs
 // it ~0.25 µs against ~0.03 µs for a lamp read from view tables).
@@ -871,9 +905,10 @@ void interpolateSmoothLamps(const FrameCtx& f, Scratch& sc, const TileView& tv, 
       }
     return wsum > 0.0f ? sum / wsum : std::numeric_limits<float>::quiet_NaN();
   };
-  // Half the block tolerance, shared among the moving lamps (each may be interpolated).
-  const float budget = 0.5f / static_cast<float>(nq) * (static_cast<float>(o.rel_tolerance) * lumAt(sc, mid) + static_cast<float>(o.abs_tolerance_cd_m2));
+  // A quarter of the block tolerance, granted to the moving lamps by grantBudget.
+  const float budget = kMovingShare * (static_cast<float>(o.rel_tolerance) * lumAt(sc, mid) + static_cast<float>(o.abs_tolerance_cd_m2));
   const float invW = w > 0 ? 1.0f / static_cast<float>(w) : 0.0f, invH = h > 0 ? 1.0f / static_cast<float>(h) : 0.0f;
+  const float inf = std::numeric_limits<float>::infinity();
   for (std::size_t q = 0; q < nq; ++q) {
     float c[4];
     bool known = true;
@@ -882,9 +917,13 @@ void interpolateSmoothLamps(const FrameCtx& f, Scratch& sc, const TileView& tv, 
       known = known && (!inMid[k] || !std::isnan(c[k]));
     }
     const float cm = sc.pml[mid * nq + q];
-    if (!known || std::isnan(cm)) continue;
-    const float predicted = predict(c, inMid, um, vm);
-    if (!(std::abs(cm - predicted) * f.mlLum[q] <= budget)) continue;
+    sc.dev[q] = known && !std::isnan(cm) ? std::abs(cm - predict(c, inMid, um, vm)) * f.mlLum[q] : inf;
+  }
+  grantBudget(sc, nq, budget);
+  for (std::size_t q = 0; q < nq; ++q) {
+    if (!sc.grant[q]) continue;
+    float c[4];
+    for (int k = 0; k < 4; ++k) c[k] = sc.pml[at[k] * nq + q];
     for (int j = bl.j0; j <= bl.j1; ++j) {
       const float v = static_cast<float>(j - bl.j0) * invH;
       for (int i = bl.i0; i <= bl.i1; ++i) {
@@ -1543,6 +1582,9 @@ void ensureScratch(State& st, const FrameCtx& f, std::size_t threads, std::size_
       sc.tileLamps.reserve(lampCount);
       sc.fill.reserve(side * side);
       sc.ml.assign(batch * f.nq, 0.0f);
+      sc.dev.assign(f.nq, 0.0f);
+      sc.order.assign(f.nq, 0);
+      sc.grant.assign(f.nq, 0);
       sc.pml.assign(sc.stride * (side + 1) * f.nq, 0.0f);
     }
     st.scratchBatch = batch;
@@ -1583,9 +1625,9 @@ void evaluateFullTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
 //  * no lamp is imaged within lamp_guard_px of it,
 //  * its nine nodes and four block centres lie in the centre's distance layer (sameLayer: the
 //    light of a lamp along a ray depends on where the ray ends), and
-//  * the lamp's value at its centre is the bilinear prediction from its corners within the
-//    lamp's share of the block tolerance (interpolateSmoothLamps' budget: half the tolerance
-//    of the centre's whole luminance, divided among the moving lamps).
+//  * the lamp's value at its centre is the bilinear prediction from its corners within what
+//    grantBudget grants it of a quarter of the block tolerance of the centre's whole luminance (as in
+//    interpolateSmoothLamps).
 // A node between two corners (the middle of a super-cell's side) then takes the lamp's linear
 // interpolation when a super-cell on either side passes, else is evaluated; the tiles
 // interpolate the block centres of passing super-cells (subsampleTile). Finer blocks still
@@ -1596,7 +1638,7 @@ void movingLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
   const ImageJob job{&st, &f};
   const ImageJob* jp = &job;
   // Pass flags, one row of super-cells per job.
-  pool.parallelForIndexed(static_cast<std::size_t>(f.superY), [jp](std::size_t row, unsigned) {
+  pool.parallelForIndexed(static_cast<std::size_t>(f.superY), [jp](std::size_t row, unsigned w) {
     const FrameCtx& fc = *jp->f;
     State& s = *jp->st;
     const std::size_t m = fc.nq;
@@ -1621,16 +1663,15 @@ void movingLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
       const std::size_t centre = static_cast<std::size_t>(2 * b + 1) * static_cast<std::size_t>(fc.coarseX) +
                                  static_cast<std::size_t>(2 * a + 1);
       const float* cp = s.coarse.data() + 3 * centre;
-      const float budget = 0.5f / static_cast<float>(m) *
-                           (static_cast<float>(fc.opt->rel_tolerance) * (cp[0] + cp[1] + cp[2]) +
-                            static_cast<float>(fc.opt->abs_tolerance_cd_m2));
+      const float budget = kMovingShare * (static_cast<float>(fc.opt->rel_tolerance) * (cp[0] + cp[1] + cp[2]) +
+                                   static_cast<float>(fc.opt->abs_tolerance_cd_m2));
       std::uint8_t* pass = s.superPass.data() + (static_cast<std::size_t>(b) * static_cast<std::size_t>(fc.superX) +
                                                  static_cast<std::size_t>(a)) * m;
-      for (std::size_t q = 0; q < m; ++q) {
-        const float cm = s.coarseMl[centre * m + q];
-        const float predicted = superBilinear(fc, s, a, b, q, x1, y1);
-        pass[q] = std::abs(cm - predicted) * fc.mlLum[q] <= budget ? 1 : 0;
-      }
+      Scratch& sc = s.scratch[w];
+      for (std::size_t q = 0; q < m; ++q)
+        sc.dev[q] = std::abs(s.coarseMl[centre * m + q] - superBilinear(fc, s, a, b, q, x1, y1)) * fc.mlLum[q];
+      grantBudget(sc, m, budget);
+      std::copy_n(sc.grant.data(), m, pass);
     }
   });
   // The nodes between corners: interpolated per lamp where a neighbouring super-cell passes,

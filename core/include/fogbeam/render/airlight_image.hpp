@@ -30,8 +30,8 @@
 // light is smooth there (SubsamplingOptions::moving_lattice); and in a block split for another
 // reason a moving lamp whose own light is smooth there is interpolated instead of evaluated,
 // across a distance edge in the centre's layer only (moving_layers). Each such test grants the
-// lamp half the block tolerance shared among the moving lamps; AirlightImage::moving_evaluated
-// counts the pairs evaluated.
+// moving lamps together a quarter of the block tolerance, lamps whose light deviates least from
+// the interpolation first; AirlightImage::moving_evaluated counts the pairs evaluated.
 //
 // Thread-safety: one evaluate() at a time per AirlightImageEvaluator.
 #pragma once
@@ -70,13 +70,13 @@ struct SubsamplingOptions {
   int lamp_guard_px = 2;      ///< blocks within this many pixels of a lamp's image are split
   /// Moving lamps (pencil path) on a lattice twice as coarse as the coarse grid: evaluated at
   /// the corners and centres of super-cells of 2 × 2 coarse blocks, and interpolated over a
-  /// super-cell where its centre matches its corners (the block test, with the lamp's share of
+  /// super-cell where its centre matches its corners (the block test, with what the lamp is granted of
   /// the tolerance), no lamp is imaged in it and its coarse nodes and block centres lie in one
   /// distance layer. false: every coarse node and block centre evaluates every moving lamp.
   bool moving_lattice = true;
   /// Moving lamps in a block split across a distance edge (a silhouette): interpolated in the
   /// centre's layer where the lamp's value there matches the prediction from the corners in that
-  /// layer (the block test, with the lamp's share of the tolerance); pixels of other layers are
+  /// layer (the block test, with what the lamp is granted of the tolerance); pixels of other layers are
   /// evaluated. false: every pixel such a split adds evaluates every moving lamp.
   bool moving_layers = true;
 };
