@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -24,22 +26,29 @@ TEST(ThreadPool, EveryIndexRunsExactlyOnce) {
 }
 
 TEST(ThreadPool, ThreadIndicesNameDistinctThreadsAndTheCallerIsZero) {
+  // Every body waits (up to 10 s) until both threads have taken an index: otherwise a worker
+  // that wakes while the caller is descheduled may take all of them, which is correct behaviour
+  // but would leave nothing to check (CI saw that once on a loaded machine). A pool whose caller
+  // never works makes this wait time out, and the test fails.
   ThreadPool pool(2);
   std::mutex m;
+  std::condition_variable bothSeen;
   std::set<unsigned> seen;
-  std::set<std::thread::id> callerIds;
+  std::set<std::thread::id> ids0, ids1;
   const std::thread::id caller = std::this_thread::get_id();
-  pool.parallelForIndexed(20'000, [&](std::size_t, unsigned t) {
+  pool.parallelForIndexed(1'000, [&](std::size_t, unsigned t) {
     ASSERT_LT(t, pool.size());
-    std::lock_guard lock(m);
+    std::unique_lock lock(m);
     seen.insert(t);
-    if (t == 0) callerIds.insert(std::this_thread::get_id());
+    (t == 0 ? ids0 : ids1).insert(std::this_thread::get_id());
+    bothSeen.notify_all();
+    bothSeen.wait_for(lock, std::chrono::seconds(10), [&] { return seen.size() == 2; });
   });
-  EXPECT_TRUE(seen.count(0));
-  if (!callerIds.empty()) {
-    EXPECT_EQ(callerIds.size(), 1u);
-    EXPECT_EQ(*callerIds.begin(), caller);
-  }
+  ASSERT_EQ(seen.size(), 2u) << "one thread took every index while the other waited 10 s";
+  ASSERT_EQ(ids0.size(), 1u);
+  EXPECT_EQ(*ids0.begin(), caller);
+  ASSERT_EQ(ids1.size(), 1u);
+  EXPECT_NE(*ids1.begin(), caller);
 }
 
 TEST(ThreadPool, AOneThreadPoolRunsOnTheCaller) {
