@@ -70,6 +70,7 @@ CanConfig parseRoot(const toml::table& root, const std::string& file, const std:
   const Section top(file, root, "");
   top.checkKeys(kTopKeys);
   CanConfig c;
+  c.file = file;
   c.dbc_path = resolvePath(baseDir, nonEmpty(top, "dbc", "the path of a DBC file"));
   c.mapping.hold_s = top.number("hold_s", kHoldRange, c.mapping.hold_s);
   if (const auto names = top.optStrings("fallback")) {
@@ -89,6 +90,7 @@ CanConfig parseRoot(const toml::table& root, const std::string& file, const std:
   if (const toml::table* t = top.optTable("speed")) {
     const Section s(file, *t, "[speed]");
     c.mapping.speed = signalRef(s, kSpeedExtraKeys);
+    c.speed_line = s.line();
     c.mapping.speed_to_m_s = s.number("to_m_s", config::kPositive, c.mapping.speed_to_m_s);
   }
   if (const toml::table* t = top.optTable("lamps")) {
@@ -96,7 +98,11 @@ CanConfig parseRoot(const toml::table& root, const std::string& file, const std:
     lamps.checkKeys(kLampKeys);
     for (std::size_t i = 0; i < kLampKeys.size(); ++i) {
       const std::string name(kLampKeys[i].name);
-      if (const toml::table* l = lamps.optTable(name)) c.mapping.lamps[i] = signalRef(Section(file, *l, "[lamps." + name + "]"));
+      if (const toml::table* l = lamps.optTable(name)) {
+        const Section entry(file, *l, "[lamps." + name + "]");
+        c.mapping.lamps[i] = signalRef(entry);
+        c.lamp_lines[i] = entry.line();
+      }
     }
   }
   return c;
@@ -118,6 +124,21 @@ Result<CanConfig> loadCanConfig(const std::string& path) {
 Result<CanDecoder> makeDecoder(const CanConfig& config) {
   auto dbc = loadDbc(config.dbc_path);
   if (!dbc) return dbc.error();
+  // Each signal against the DBC first, so that a name it lacks is reported where the mapping
+  // file names it (the DBC's message says which file it is and lists what it has).
+  if (!config.file.empty()) {
+    auto check = [&](const std::optional<CanSignalRef>& ref, std::size_t line, const std::string& key) -> Status {
+      if (!ref) return Ok{};
+      auto sig = dbc->signal(ref->message, ref->signal);
+      if (!sig) return fileError(config.file, line, key + ": " + sig.error().message);
+      return Ok{};
+    };
+    for (std::size_t i = 0; i < kLampKeys.size(); ++i) {
+      if (Status s = check(config.mapping.lamps[i], config.lamp_lines[i], "[lamps] " + std::string(kLampKeys[i].name)); !s)
+        return s.error();
+    }
+    if (Status s = check(config.mapping.speed, config.speed_line, "speed"); !s) return s.error();
+  }
   auto d = CanDecoder::create(*dbc, config.mapping);
   if (!d) return Error{"CAN mapping against " + config.dbc_path + ": " + d.error().message};
   return d;

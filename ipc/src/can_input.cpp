@@ -87,24 +87,41 @@ bool CanDecoder::onFrame(const CanFrame& frame, Clock::time_point now) {
   return any;
 }
 
+CanDecoder::SignalState CanDecoder::stateOf(const Bound& b, Clock::time_point now) const {
+  const auto hold = std::chrono::duration<double>(mapping_.hold_s);
+  if (b.seen != Clock::time_point{}) return now - b.seen <= hold ? SignalState::Fresh : SignalState::Silent;
+  // Never seen: silent once the source has run for hold_s without it, not at its start.
+  return started_ != Clock::time_point{} && now - started_ > hold ? SignalState::Silent : SignalState::Unknown;
+}
+
 std::uint32_t CanDecoder::lights(Clock::time_point now) const {
   std::uint32_t bits = 0;
   for (std::size_t k = 0; k < kCanLampCount; ++k) {
     const Bound& b = lamps_[k];
     if (!b.present) continue;
-    const bool fresh = b.seen != Clock::time_point{} && now - b.seen <= std::chrono::duration<double>(mapping_.hold_s);
-    const bool on = fresh ? b.value != 0.0 : (mapping_.fallback_lights & kCanLampBits[k]) != 0;
+    const SignalState st = stateOf(b, now);
+    const bool on = st == SignalState::Fresh    ? b.value != 0.0
+                    : st == SignalState::Silent ? (mapping_.fallback_lights & kCanLampBits[k]) != 0
+                                                : false;
     if (on) bits |= kCanLampBits[k];
   }
   return bits;
 }
 
 void CanDecoder::publish(StateStore& store, Clock::time_point now, const std::string& source, bool force) {
-  // Log each lamp signal's transition to and from "silent" once.
+  if (started_ == Clock::time_point{}) started_ = now;
+  // Log each lamp signal's transition to and from "silent" once; collect the bits the mapping
+  // owns, those known by now and the newest lamp frame's receipt.
+  std::uint32_t owned = 0, known = 0;
+  Clock::time_point newest{};
   for (std::size_t k = 0; k < kCanLampCount; ++k) {
     Bound& b = lamps_[k];
     if (!b.present) continue;
-    const bool silent = b.seen == Clock::time_point{} || now - b.seen > std::chrono::duration<double>(mapping_.hold_s);
+    owned |= kCanLampBits[k];
+    const SignalState st = stateOf(b, now);
+    if (st != SignalState::Unknown) known |= kCanLampBits[k];
+    newest = std::max(newest, b.seen);
+    const bool silent = st == SignalState::Silent;
     if (silent && !b.silentLogged) {
       ++stats_.fallbacks;
       spdlog::warn("can: {} signal {} silent for more than {} s: falling back to {}", kLampNames[k], b.signal.name,
@@ -119,20 +136,23 @@ void CanDecoder::publish(StateStore& store, Clock::time_point now, const std::st
   s.valid = true;
   s.received = now;
   s.source = source;
-  const std::uint32_t bits = lights(now);
-  if (force || bits != lastLights_) {
-    s.sequence = ++sequence_;
-    const auto cur = store.snapshot();
-    LampState l = cur->lamps.value;
-    // The CAN mapping owns the bits it maps; others (e.g. DRL from UDP) are kept.
-    std::uint32_t owned = 0;
-    for (std::size_t k = 0; k < kCanLampCount; ++k)
-      if (lamps_[k].present) owned |= kCanLampBits[k];
-    l.lights = (l.lights & ~owned) | bits;
-    store.setLamps(l, s);
+  const std::uint32_t bits = lights(now) & known;
+  // A frame that repeats the lamp signals changes no bit but is the newest input the frame uses:
+  // publish it for its stamp. A change that silence made (a fallback) has no new frame: its
+  // stamp keeps the last frame's receipt (now, when no frame was ever seen).
+  const bool newFrame = newest > lastLampSeen_;
+  if (force || bits != lastLights_ || known != lastKnown_ || newFrame) {
+    if (known != 0) {
+      s.sequence = ++sequence_;
+      if (newest != Clock::time_point{}) s.received = newest;
+      ++stats_.published;
+    }
+    store.setBusLights(owned, known, bits, s);  // known 0: claims the bits, publishes nothing
     lastLights_ = bits;
-    ++stats_.published;
+    lastKnown_ = known;
+    lastLampSeen_ = newest;
   }
+  s.received = now;
   if (speed_.present && speed_.seen != Clock::time_point{}) {
     const double v = speed_.value * mapping_.speed_to_m_s;
     if (force || v != lastSpeed_) {
@@ -332,13 +352,18 @@ Result<std::unique_ptr<CanSource>> startCandumpReplay(const std::string& path, d
   auto lines = loadCandump(path);
   if (!lines) return lines.error();
   auto src = std::make_unique<ThreadSource>(std::move(decoder), store, "candump " + path);
-  const Status started = src->run([lines = std::move(lines).value(), speed](ThreadSource& self) {
+  const Status started = src->run([lines = std::move(lines).value(), speed, path](ThreadSource& self) {
     replayCandump(lines, speed, [&](const CandumpLine& l) {
       self.frame(l.frame);
       self.tick();
       return !self.stopping();
     });
     self.tick();
+    // The end of a log is not a silent bus: the thread ends here, so no hold_s passes, nothing
+    // falls back and nothing is logged as silent; the state the log left stays (docs/can.md).
+    if (!self.stopping())
+      spdlog::info("can: candump {}: replay finished after {} frame(s); its last lamp states and speed are kept", path,
+                   lines.size());
   });
   if (!started) return started.error();
   return std::unique_ptr<CanSource>(std::move(src));

@@ -80,6 +80,10 @@ int fogbeam_latest(fogbeam_reader* r, void* dst, size_t dst_size, fogbeam_frame_
   info->width = r->reader->width();
   info->height = r->reader->height();
   info->format = r->reader->format();
+  info->fov_x_deg = m.fov_x_deg;
+  info->fov_y_deg = m.fov_y_deg;
+  for (std::size_t k = 0; k < 4; ++k) info->frustum_deg[k] = m.frustum_deg[k];
+  info->host_frame = m.host_frame;
   return FOGBEAM_OK;
 }
 
@@ -109,6 +113,11 @@ int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, cons
     lastError = "fogbeam_depth_publish: null argument";
     return FOGBEAM_ERROR;
   }
+  if (camera->frame == 0) {
+    // The header's `latest` word is (frame << 8) | slot and 0 means "nothing yet" (docs/shm.md).
+    lastError = "fogbeam_depth_publish: frame 0: host frame numbers start at 1";
+    return FOGBEAM_ERROR;
+  }
   fogbeam::ipc::FrameMeta m;
   m.frame = camera->frame;
   m.sim_time_s = camera->sim_time_s;
@@ -118,6 +127,7 @@ int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, cons
   m.roll_deg = camera->roll_deg;
   m.fov_x_deg = camera->fov_x_deg;
   m.fov_y_deg = camera->fov_y_deg;
+  for (std::size_t k = 0; k < 4; ++k) m.frustum_deg[k] = camera->frustum_deg[k];
   w->writer->publish(m, std::as_bytes(std::span<const float>(distance_m, w->pixels)));
   return FOGBEAM_OK;
 }

@@ -85,6 +85,8 @@ void writeMeta(std::byte* slot, const FrameMeta& m) {
   put(slot, FOGBEAM_SLOT_FRAME_REQUEST, m.frame_request);
   put(slot, FOGBEAM_SLOT_FOV_X, m.fov_x_deg);
   put(slot, FOGBEAM_SLOT_FOV_Y, m.fov_y_deg);
+  for (std::size_t k = 0; k < 4; ++k) put(slot, FOGBEAM_SLOT_FRUSTUM + 4 * k, m.frustum_deg[k]);
+  put(slot, FOGBEAM_SLOT_HOST_FRAME, m.host_frame);
 }
 
 FrameMeta readMeta(const std::byte* slot) {
@@ -109,6 +111,8 @@ FrameMeta readMeta(const std::byte* slot) {
   m.frame_request = get<std::uint64_t>(slot, FOGBEAM_SLOT_FRAME_REQUEST);
   m.fov_x_deg = get<float>(slot, FOGBEAM_SLOT_FOV_X);
   m.fov_y_deg = get<float>(slot, FOGBEAM_SLOT_FOV_Y);
+  for (std::size_t k = 0; k < 4; ++k) m.frustum_deg[k] = get<float>(slot, FOGBEAM_SLOT_FRUSTUM + 4 * k);
+  m.host_frame = get<std::uint64_t>(slot, FOGBEAM_SLOT_HOST_FRAME);
   return m;
 }
 

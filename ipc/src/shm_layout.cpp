@@ -49,7 +49,7 @@ static_assert(FOGBEAM_SHM_HEADER_SIZE == 256 && sizeof(HeaderLayout) == FOGBEAM_
 static_assert(FOGBEAM_SHM_MAGIC == 0x53424746u);  // the bytes "FGBS", little-endian:
 static_assert(FOGBEAM_SHM_MAGIC == (std::uint32_t{'F'} | std::uint32_t{'G'} << 8 | std::uint32_t{'B'} << 16 |
                                     std::uint32_t{'S'} << 24));
-static_assert(FOGBEAM_SHM_VERSION == 1);
+static_assert(FOGBEAM_SHM_VERSION == 2);
 
 static_assert(FOGBEAM_HDR_MAGIC == 0 && offsetof(HeaderLayout, magic) == FOGBEAM_HDR_MAGIC);
 static_assert(FOGBEAM_HDR_VERSION == 4 && offsetof(HeaderLayout, version) == FOGBEAM_HDR_VERSION);
@@ -105,7 +105,9 @@ struct SlotMetaLayout {
   std::uint64_t frame_request;
   float fov_x_deg;
   float fov_y_deg;
-  std::uint8_t unused[112];  // 144–255
+  float frustum_deg[4];
+  std::uint64_t host_frame;
+  std::uint8_t unused[88];  // 168–255
 };
 
 static_assert(FOGBEAM_SHM_SLOT_META_SIZE == 256 && sizeof(SlotMetaLayout) == FOGBEAM_SHM_SLOT_META_SIZE);
@@ -128,6 +130,8 @@ static_assert(FOGBEAM_SLOT_PUBLISH_NS == 120 && offsetof(SlotMetaLayout, publish
 static_assert(FOGBEAM_SLOT_FRAME_REQUEST == 128 && offsetof(SlotMetaLayout, frame_request) == FOGBEAM_SLOT_FRAME_REQUEST);
 static_assert(FOGBEAM_SLOT_FOV_X == 136 && offsetof(SlotMetaLayout, fov_x_deg) == FOGBEAM_SLOT_FOV_X);
 static_assert(FOGBEAM_SLOT_FOV_Y == 140 && offsetof(SlotMetaLayout, fov_y_deg) == FOGBEAM_SLOT_FOV_Y);
+static_assert(FOGBEAM_SLOT_FRUSTUM == 144 && offsetof(SlotMetaLayout, frustum_deg) == FOGBEAM_SLOT_FRUSTUM);
+static_assert(FOGBEAM_SLOT_HOST_FRAME == 160 && offsetof(SlotMetaLayout, host_frame) == FOGBEAM_SLOT_HOST_FRAME);
 
 // ---- The atomic words (docs/shm.md, "Synchronisation") --------------------------------------
 // shm_channel.cpp accesses them through std::atomic_ref, which needs this alignment relative to

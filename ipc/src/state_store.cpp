@@ -7,6 +7,7 @@ namespace fogbeam::ipc {
 StateStore::StateStore(const StateStoreOptions& options) : options_(options) {
   auto s = std::make_shared<SimSnapshot>();
   s->traffic_timeout_s = options_.traffic_timeout_s;
+  s->lamps.value.lights = light::kInitialEgo;  // until the first lamp state (docs/service.md)
   current_.store(std::move(s));
 }
 
@@ -26,7 +27,27 @@ void StateStore::setEgo(const EgoState& v, const Stamp& s) {
 }
 
 void StateStore::setLamps(const LampState& v, const Stamp& s) {
-  update([&](SimSnapshot& n) { n.lamps = {v, s}; });
+  update([&](SimSnapshot& n) {
+    LampState l = v;
+    l.lights = (v.lights & ~busOwnedLights_) | (n.lamps.value.lights & busOwnedLights_);
+    n.lamps = {l, s};
+  });
+}
+
+void StateStore::setBusLights(std::uint32_t owned, std::uint32_t known, std::uint32_t bits, const Stamp& s) {
+  known &= owned;
+  if (known == 0) {
+    std::lock_guard<std::mutex> lock(writers_);
+    busOwnedLights_ |= owned;
+    return;
+  }
+  update([&](SimSnapshot& n) {
+    busOwnedLights_ |= owned;
+    const Stamp before = n.lamps.stamp;
+    n.lamps.value.lights = (n.lamps.value.lights & ~known) | (bits & known);
+    n.lamps.stamp = s;
+    if (before.valid) n.lamps.stamp.received = std::max(before.received, s.received);
+  });
 }
 
 void StateStore::setEnvironment(const Environment& v, const Stamp& s) {

@@ -70,6 +70,9 @@ struct UdpReceiver::Impl {
   // The same for failing system calls in the loop (receiveError()).
   Clock::time_point lastErrorLog{};
   std::uint64_t errorsSinceLog = 0;
+  // The same for traffic objects refused by a full store (refusedObjects()).
+  Clock::time_point lastRefusedLog{};
+  std::uint64_t refusedSinceLog = 0;
 
   void drop(DropReason r, std::string_view field, const sockaddr_in& from) {
     const auto i = static_cast<std::size_t>(r);
@@ -147,7 +150,7 @@ struct UdpReceiver::Impl {
     s.sequence = m.header.sequence;
     s.received = now;
     s.source = "udp " + endpoint(from);
-    std::size_t refused = 0;
+    std::size_t refused = 0, carried = 0;
     std::visit(
         [&](const auto& p) {
           using T = std::decay_t<decltype(p)>;
@@ -155,15 +158,39 @@ struct UdpReceiver::Impl {
           else if constexpr (std::is_same_v<T, LampState>) store->setLamps(p, s);
           else if constexpr (std::is_same_v<T, Environment>) store->setEnvironment(p, s);
           else if constexpr (std::is_same_v<T, FrameRequest>) store->setFrameRequest(p, s);
-          else if constexpr (std::is_same_v<T, TrafficList>) refused = store->applyTraffic(p, s);
+          else if constexpr (std::is_same_v<T, TrafficList>) {
+            refused = store->applyTraffic(p, s);
+            carried = p.objects.size();
+          }
         },
         m.payload);
+    // Every datagram counts once, as applied or under one drop reason (datagrams = applied + the
+    // drops). Objects the full store refused are counted one by one; a datagram of which it took
+    // nothing (every object refused) is a drop, one of which it took some is applied.
+    if (refused > 0) refusedObjects(refused, from);
+    if (refused > 0 && refused == carried) {
+      drop(DropReason::TooManyObjects, "count", from);
+      return;
+    }
     std::lock_guard<std::mutex> lock(statsMutex);
     ++stats.applied;
     ++stats.applied_by_type[static_cast<std::size_t>(m.header.type)];
-    if (refused > 0) {
-      stats.traffic_refused += refused;
-      ++stats.dropped[static_cast<std::size_t>(DropReason::TooManyObjects)];
+  }
+
+  // Traffic objects refused by the store's bound (StateStoreOptions::max_traffic_objects):
+  // counted, and logged at most once per second with the count since the last line.
+  void refusedObjects(std::size_t n, const sockaddr_in& from) {
+    {
+      std::lock_guard<std::mutex> lock(statsMutex);
+      stats.traffic_refused += n;
+    }
+    refusedSinceLog += n;
+    const auto now = Clock::now();
+    if (now - lastRefusedLog >= std::chrono::seconds(1)) {
+      spdlog::warn("udp: refused {} traffic object(s): the state holds its maximum of {} (last from {})",
+                   refusedSinceLog, store->options().max_traffic_objects, endpoint(from));
+      lastRefusedLog = now;
+      refusedSinceLog = 0;
     }
   }
 

@@ -42,17 +42,24 @@ Result<std::unique_ptr<FramePipeline>> FramePipeline::create(ServiceConfig confi
 FramePipeline::~FramePipeline() = default;
 
 Status FramePipeline::step(const ipc::SimSnapshot& state, ipc::Clock::time_point now, FrameBookkeeping book,
-                           FrameSink& sink, std::size_t* failedChannel) {
+                           FrameSink& sink, std::size_t* failedChannel, std::span<const HostFrame* const> hosts) {
   // Input-to-frame latency starts at the arrival of the newest message the state holds.
   ipc::Clock::time_point newest{};
   for (const ipc::Stamp* s : {&state.ego.stamp, &state.lamps.stamp, &state.environment.stamp, &state.frame_request.stamp})
     if (s->valid) newest = std::max(newest, s->received);
   for (std::size_t c = 0; c < renderers_.size(); ++c) {
-    Status s = renderers_[c]->render(state, now, awaitTables_, frame_);
+    const HostFrame* host = c < hosts.size() ? hosts[c] : nullptr;
+    if (!host && !config_.channels[c].depth_from.empty()) continue;  // no host view yet
+    Status s = renderers_[c]->render(state, now, awaitTables_, frame_, host);
     if (s) {
       book.latency_ms.reset();
-      if (newest != ipc::Clock::time_point{})
+      if (host) {
+        // A host view's input is the host's depth frame: from its publish (CLOCK_MONOTONIC, the
+        // clock of both sides) to the end of the render.
+        book.latency_ms = static_cast<double>(ipc::monotonicNs() - host->view->publish_ns) * 1e-6;
+      } else if (newest != ipc::Clock::time_point{}) {
         book.latency_ms = std::chrono::duration<double, std::milli>(ipc::Clock::now() - newest).count();
+      }
       s = sink.consume(c, frame_, book);
     }
     if (!s) {

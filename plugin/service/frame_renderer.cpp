@@ -33,6 +33,25 @@ Mat3 rotation(const ipc::Pose& p) {
 
 Vec3 position(const ipc::Pose& p) { return Vec3(p.position_m[0], p.position_m[1], p.position_m[2]); }
 
+/// Where the vehicle is: the ego lamps and the channel's eye hang from it.
+struct VehiclePose {
+  Mat3 R{1.0};     ///< worldFromVehicle
+  Vec3 O{0.0};     ///< the vehicle origin in the world, m
+};
+
+VehiclePose poseOf(const ipc::EgoState& ego) { return {rotation(ego.pose), position(ego.pose)}; }
+
+/// The vehicle pose that puts the channel's eye (`vehicleCamera`, vehicle frame) exactly where
+/// the host's camera is: worldFromVehicle = worldFromHostCamera · (worldFromCamera_vehicle)ᵀ,
+/// origin = host eye − worldFromVehicle · eye_vehicle. The ego lamps then keep their place
+/// relative to the eye, whatever the UDP/CAN ego pose says (docs/service.md, "Host depth").
+VehiclePose poseOf(const Camera& host, const Camera& vehicleCamera) {
+  VehiclePose v;
+  v.R = host.worldFromCamera * glm::transpose(vehicleCamera.worldFromCamera);
+  v.O = host.position_m - v.R * vehicleCamera.position_m;
+  return v;
+}
+
 /// What the tables depend on besides the rig: the fog and the ego's bending angle. Fogs compare
 /// by the medium they describe (a visibility and the equivalent extinction are equal); tables
 /// for one angle serve angles within [ego] bending_tolerance_deg of it (serves()).
@@ -185,16 +204,18 @@ struct ChannelRenderer::Impl {
   std::future<Result<AirlightImageEvaluator>> building;  ///< tables for `next`, off the frame thread
   TableKey next;
 
-  SurfaceBuffers surface;
+  SurfaceBuffers surface;  ///< the surface pass's output (own views)
+  /// This frame's surfaces: `surface`, or a host's distances (depth_from; rgb zero).
+  const SurfaceBuffers* surf = &surface;
   AirlightImage air, trafficAir;
 
   /// The frame's scene: world lamps, then the ego rig (in config order), for the ego pose, the
   /// key's fog and bending.
-  Scene sceneFor(const ipc::EgoState& ego, const TableKey& key) const {
+  Scene sceneFor(const VehiclePose& pose, const TableKey& key) const {
     Scene s = world;
     s.fog = mediumFrom(key.fog);
-    const Mat3 R = rotation(ego.pose);
-    const Vec3 O = position(ego.pose);
+    const Mat3& R = pose.R;
+    const Vec3& O = pose.O;
     s.camera = vehicleCamera;
     s.camera.position_m = O + R * vehicleCamera.position_m;
     s.camera.worldFromCamera = R * vehicleCamera.worldFromCamera;
@@ -211,9 +232,10 @@ struct ChannelRenderer::Impl {
 
   // The stages of render(), in order (defined below, each with what it does).
   [[nodiscard]] TableKey wantedTables(const ipc::SimSnapshot& state) const;
-  [[nodiscard]] Status updateTables(const ipc::EgoState& ego, const TableKey& want, bool wait);
+  [[nodiscard]] Status updateTables(const VehiclePose& pose, const TableKey& want, bool wait);
   [[nodiscard]] Status egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit);
-  void startBuild(const ipc::EgoState& ego, const TableKey& want);
+  void startBuild(const VehiclePose& pose, const TableKey& want);
+  void adoptHostIntrinsics(const Camera& host);
   [[nodiscard]] std::uint32_t trafficLamps(const ipc::SimSnapshot& state, ipc::Clock::time_point now, Scene& traffic,
                                            Scene& lit) const;
   [[nodiscard]] Status renderSurfaces(const Scene& lit, double& gpuAirlightMs);
@@ -308,13 +330,30 @@ TableKey ChannelRenderer::Impl::wantedTables(const ipc::SimSnapshot& state) cons
   return want;
 }
 
-void ChannelRenderer::Impl::startBuild(const ipc::EgoState& ego, const TableKey& want) {
+void ChannelRenderer::Impl::startBuild(const VehiclePose& pose, const TableKey& want) {
   next = want;
   buildStart = frameIndex;
-  building = std::async(std::launch::async, [this, scene = sceneFor(ego, want)] { return buildFor(scene); });
+  building = std::async(std::launch::async, [this, scene = sceneFor(pose, want)] { return buildFor(scene); });
 }
 
-Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const TableKey& want, bool wait) {
+void ChannelRenderer::Impl::adoptHostIntrinsics(const Camera& host) {
+  // The view tables are made for the camera's frustum (ViewKey): a host view with other
+  // intrinsics than the channel's makes the evaluator rebuild them at its next frame (seconds,
+  // once). The eye's place and orientation in the vehicle stay the channel's.
+  Camera& v = vehicleCamera;
+  if (v.width == host.width && v.height == host.height && v.fov_x == host.fov_x &&
+      v.principalPoint() == host.principalPoint())
+    return;
+  spdlog::info("serve: channel {}: the host view is {}x{}, {:.3f}° wide{}: the channel follows it (tables rebuilt once)",
+               channel.name, host.width, host.height, (host.frustum().left + host.frustum().right) * 180.0 / kPi,
+               host.isCentred() ? "" : ", off-axis");
+  v.width = host.width;
+  v.height = host.height;
+  v.fov_x = host.fov_x;
+  v.principal_px = host.principal_px;
+}
+
+Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableKey& want, bool wait) {
   ++frameIndex;
   if (gpuAirlight) {
     // Nothing is tabulated on the CPU: every frame renders its own fog and bending at once.
@@ -344,7 +383,7 @@ Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const Table
     wantHeld = frameIndex > 1 && lastWant.serves(want, tol) ? wantHeld + 1 : 1;
     lastWant = want;
     useTables = eval && current.serves(want, tol);
-    if (!useTables && !building.valid() && wantHeld >= 2) startBuild(ego, want);
+    if (!useTables && !building.valid() && wantHeld >= 2) startBuild(pose, want);
     return Ok{};
   }
   // pending_tables = "previous". A finished background build replaces the tables in use
@@ -358,13 +397,13 @@ Status ChannelRenderer::Impl::updateTables(const ipc::EgoState& ego, const Table
   if (!eval || !current.serves(want, config->bending_tolerance_deg)) {
     if (wait || !eval) {
       // Lock-step, replay, and the very first frame: build here, the frame waits.
-      auto built = buildFor(sceneFor(ego, want));
+      auto built = buildFor(sceneFor(pose, want));
       if (!built) return built.error();
       eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
       current = want;
     } else if (!building.valid()) {
       // Free-running: one build at a time in the background; frames keep `current` meanwhile.
-      startBuild(ego, want);
+      startBuild(pose, want);
     }
   }
   useTables = true;
@@ -433,10 +472,10 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
                                              RenderedFrame& out) {
   out.traffic_evaluated = 0;
   if (gpuAirlight) {
-    air.width = surface.width;
-    air.height = surface.height;
+    air.width = surf->width;
+    air.height = surf->height;
     air.rgb.swap(gpuAir);  // no copy; the GL pass refills the other buffer next frame
-    air.evaluated = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);
+    air.evaluated = static_cast<std::size_t>(surf->width) * static_cast<std::size_t>(surf->height);
     out.airlight_evaluated = air.evaluated;
     return Ok{};
   }
@@ -455,10 +494,10 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
       pendingEval = std::make_unique<AirlightImageEvaluator>(std::move(fe).value());
     }
     for (std::size_t i = 0; i < all.lamps.size(); ++i) pendingEval->setLampEnabled(i, lampOn[i] != 0);
-    pendingEval->evaluate(all, surface, subsampling, air);
+    pendingEval->evaluate(all, *surf, subsampling, air);
   } else {
     // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
-    eval->evaluate(scene, surface, subsampling, air);
+    eval->evaluate(scene, *surf, subsampling, air);
   }
   out.airlight_evaluated = air.evaluated;
   if (!traffic.lamps.empty()) {
@@ -467,7 +506,7 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
     // per-lamp tables come from the evaluators' caches, the pool is the frame's.
     auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, useTables ? eval->pool() : framePool, fast);
     if (!te) return te.error();
-    te->evaluate(traffic, surface, subsampling, trafficAir);
+    te->evaluate(traffic, *surf, subsampling, trafficAir);
     out.traffic_evaluated = trafficAir.evaluated;
     for (std::size_t k = 0; k < air.rgb.size(); ++k) air.rgb[k] += trafficAir.rgb[k];
   }
@@ -492,7 +531,7 @@ Status ChannelRenderer::Impl::renderEffects(const Scene& lit, const TableKey& ke
     effectsKey = key;
     effectsPool = pool.get();
   }
-  effects->evaluate(lit, surface, glow, glare, out.effects);
+  effects->evaluate(lit, *surf, glow, glare, out.effects);
   layers.glow = &glow;
   layers.glare = &glare;
   return Ok{};
@@ -501,7 +540,7 @@ Status ChannelRenderer::Impl::renderEffects(const Scene& lit, const TableKey& ke
 void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out) {
   // Composite (surface · T + airlight, glow and glare added), then the channel's wire format:
   // tone-mapped sRGB at the channel's exposure, linear cd/m², or the overlay (A = T).
-  compositeFrame(fog, surface, air, out.layers, layers);
+  compositeFrame(fog, *surf, air, out.layers, layers);
   const std::size_t n = static_cast<std::size_t>(channel.width) * static_cast<std::size_t>(channel.height);
   out.packed.resize(n * ipc::bytesPerPixel(format));
   if (format == FOGBEAM_FORMAT_RGBA8_SRGB) {
@@ -515,10 +554,21 @@ void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLaye
 }
 
 Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
-                               RenderedFrame& out) {
+                               RenderedFrame& out, const HostFrame* host) {
   Impl& m = *impl_;
   const auto t0 = Clock::now();
   const ipc::EgoState& ego = state.ego.value;
+  if (host) {
+    const Camera& hc = host->view->camera;
+    if (hc.width != m.channel.width || hc.height != m.channel.height || host->surface->width != hc.width ||
+        host->surface->height != hc.height)
+      return Error{"host view " + std::to_string(hc.width) + "x" + std::to_string(hc.height) + " for a " +
+                   std::to_string(m.channel.width) + "x" + std::to_string(m.channel.height) + " channel"};
+    m.adoptHostIntrinsics(hc);
+  }
+  // The vehicle: the ego pose, or for a host view the pose that puts the channel's eye at the
+  // host's camera (the host's view wins; docs/service.md, "Host depth").
+  const VehiclePose pose = host ? poseOf(host->view->camera, m.vehicleCamera) : poseOf(ego);
   // Until the first lamp state the ego drives with low beams and position lamps.
   const std::uint32_t lights =
       state.lamps.stamp.valid ? state.lamps.value.lights : (ipc::light::kLowBeam | ipc::light::kPosition);
@@ -526,7 +576,7 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   // 1. Tables for the wanted fog and bending (built, awaited or still building).
   const TableKey want = m.wantedTables(state);
   const auto tw = Clock::now();
-  if (Status s = m.updateTables(ego, want, wait); !s) return s;
+  if (Status s = m.updateTables(pose, want, wait); !s) return s;
   out.timings.table_wait_ms = ms(tw, Clock::now());
   const bool served = m.current.serves(want, m.config->bending_tolerance_deg);
   out.pending = m.gpuAirlight ? false : m.perPixelPending ? !m.useTables : !served;
@@ -539,7 +589,8 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
   // bending; `lit` = the lamps that are on (world, ego by light bits, traffic), for the surface
   // pass, the GPU airlight, glow and glare; `traffic` = the traffic lamps that are on.
-  const Scene scene = m.sceneFor(ego, key);
+  Scene scene = m.sceneFor(pose, key);
+  if (host) scene.camera = host->view->camera;  // exactly the host's (sceneFor's differs by rounding)
   Scene lit = scene;
   lit.lamps.clear();
   Scene traffic = scene;
@@ -550,7 +601,10 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   // 3. Surfaces.
   const auto tS = Clock::now();
   double gpuAirlightMs = 0.0;
-  if (Status s = m.renderSurfaces(lit, gpuAirlightMs); !s) return s;
+  m.surf = host ? host->surface : &m.surface;  // a host view: its distances, no surface pass
+  if (!host) {
+    if (Status s = m.renderSurfaces(lit, gpuAirlightMs); !s) return s;
+  }
 
   // 4. Airlight.
   const auto tA = Clock::now();
@@ -568,13 +622,27 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
 
   // What the renderer knows of the frame; the service adds its bookkeeping (wireMeta).
   out.view.eye_m = scene.camera.position_m;
-  out.view.yaw_deg = ego.pose.yaw_deg;
-  out.view.pitch_deg = ego.pose.pitch_deg;
-  out.view.roll_deg = ego.pose.roll_deg;
   const FrustumAngles f = m.vehicleCamera.frustum();
   out.view.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
   out.view.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
-  out.inputs.sim_time_s = state.ego.stamp.sim_time_s;
+  out.host_frame = host ? host->view->frame : 0;
+  if (host) {
+    // The host's view echoed as it was published, so that the host pairs the overlay with its frame.
+    const HostView& hv = *host->view;
+    out.view.yaw_deg = hv.yaw_deg;
+    out.view.pitch_deg = hv.pitch_deg;
+    out.view.roll_deg = hv.roll_deg;
+    out.view.frustum_deg = hv.frustum_deg;
+    out.inputs.sim_time_s = hv.sim_time_s;
+  } else {
+    out.view.yaw_deg = ego.pose.yaw_deg;
+    out.view.pitch_deg = ego.pose.pitch_deg;
+    out.view.roll_deg = ego.pose.roll_deg;
+    out.view.frustum_deg = {0.0f, 0.0f, 0.0f, 0.0f};
+    if (m.channel.frustum_deg)
+      for (std::size_t k = 0; k < 4; ++k) out.view.frustum_deg[k] = static_cast<float>((*m.channel.frustum_deg)[k]);
+    out.inputs.sim_time_s = state.ego.stamp.sim_time_s;
+  }
   out.inputs.lights = lights;
   out.inputs.ego_sequence = state.ego.stamp.sequence;
   out.inputs.lamp_sequence = state.lamps.stamp.sequence;

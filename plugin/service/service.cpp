@@ -52,6 +52,10 @@ struct StatusBoard {
   std::uint64_t traffic_expired = 0;  ///< traffic objects removed for want of updates, since start
   bool tables_pending = false;
   std::string input = "none";
+  double vehicle_speed_m_s = -1.0;  ///< from CAN; −1 = none received
+  std::uint64_t frame_requests_refused = 0;  ///< lock-step requests for frame 0 (frames start at 1)
+  /// Per channel with depth_from: its host depth link's figures (HostDepthLink::counts).
+  std::vector<std::pair<std::string, HostDepthCounts>> host_depth;
 
   std::string json(const ipc::UdpStats& udp) const {
     std::lock_guard lock(mutex);
@@ -64,7 +68,18 @@ struct StatusBoard {
       << ", \"latency_ms_p95\": " << latency_p95 << ", \"input\": \"" << input << "\", \"ego_age_s\": " << ego_age_s
       << ", \"lamps_age_s\": " << lamps_age_s << ", \"environment_age_s\": " << env_age_s
       << ", \"traffic\": " << traffic << ", \"traffic_expired\": " << traffic_expired
-      << ", \"tables_pending\": " << (tables_pending ? "true" : "false")
+      << ", \"tables_pending\": " << (tables_pending ? "true" : "false");
+    if (vehicle_speed_m_s >= 0.0) o << ", \"vehicle_speed_m_s\": " << vehicle_speed_m_s;
+    else o << ", \"vehicle_speed_m_s\": null";
+    o << ", \"frame_requests_refused\": " << frame_requests_refused << ", \"host_depth\": [";
+    for (std::size_t i = 0; i < host_depth.size(); ++i) {
+      const auto& [name, c] = host_depth[i];
+      o << (i ? ", " : "") << "{\"channel\": \"" << name << "\", \"connected\": " << (c.connected ? "true" : "false")
+        << ", \"stale\": " << (c.stale ? "true" : "false") << ", \"last_frame\": " << c.last_frame
+        << ", \"frames\": " << c.frames << ", \"repeated\": " << c.repeated << ", \"refused\": " << c.refused
+        << ", \"lost\": " << c.lost << ", \"attached\": " << c.attached << "}";
+    }
+    o << "]"
       << ", \"udp\": {\"datagrams\": " << udp.datagrams << ", \"applied\": " << udp.applied << ", \"dropped\": {";
     bool first = true;
     for (std::size_t r = 0; r < ipc::kDropReasonCount; ++r) {
@@ -258,6 +273,8 @@ ipc::FrameMeta wireMeta(const RenderedFrame& frame, const FrameBookkeeping& book
   meta.roll_deg = frame.view.roll_deg;
   meta.fov_x_deg = frame.view.fov_x_deg;
   meta.fov_y_deg = frame.view.fov_y_deg;
+  meta.frustum_deg = frame.view.frustum_deg;
+  meta.host_frame = frame.host_frame;
   meta.lights = frame.inputs.lights;
   meta.ego_sequence = frame.inputs.ego_sequence;
   meta.lamp_sequence = frame.inputs.lamp_sequence;
@@ -281,7 +298,18 @@ struct Service::Impl {
   std::unique_ptr<ipc::StateStore> store;
   std::unique_ptr<ipc::UdpReceiver> udp;
   std::unique_ptr<ipc::CanSource> can;
+  /// The CAN source as the scenario player's thread sees it (a candump replay starts after the
+  /// first frame, on the frame loop's thread).
+  std::atomic<const ipc::CanSource*> canIn{nullptr};
+  /// [input.can] source = "candump": the replay's decoder until the first frame is published.
+  std::optional<ipc::CanDecoder> candumpDecoder;
   std::unique_ptr<FramePipeline> pipeline;
+  /// Per channel: its host depth link (depth_from), or null; and the frame step's host views.
+  std::vector<std::unique_ptr<HostDepthLink>> hostLinks;
+  std::vector<HostFrame> hostFrames;
+  std::vector<const HostFrame*> hostPtrs;
+  std::uint64_t frameRequestsRefused = 0;
+  Clock::time_point lastRefusedRequestLog{};
   std::vector<std::unique_ptr<ipc::ShmWriter>> writers;
   StatusBoard board;
   std::unique_ptr<ipc::StatusServer> status;
@@ -330,6 +358,7 @@ Result<std::unique_ptr<Service>> Service::create(ServiceConfig config, const Ser
 
   ipc::StateStoreOptions so;
   so.traffic_timeout_s = cfg.traffic_timeout_s;
+  so.max_traffic_objects = cfg.max_traffic_objects;
   m->store = std::make_unique<ipc::StateStore>(so);
   ipc::UdpReceiverOptions udp;
   udp.bind_address = cfg.udp_bind;
@@ -348,7 +377,12 @@ Result<std::unique_ptr<Service>> Service::create(ServiceConfig config, const Ser
     if (!dec) return dec.error();
     Result<std::unique_ptr<ipc::CanSource>> src = Error{"unknown CAN source"};
     if (cfg.can_source == "candump") {
-      src = ipc::startCandumpReplay(cfg.can_candump, cfg.can_candump_speed, std::move(dec).value(), *m->store);
+      // The log is checked now (a bad line fails the start) and replayed from the first frame
+      // published on (run()): frames before it may wait for tables, and the log's start would
+      // otherwise never be seen.
+      if (auto log = ipc::loadCandump(cfg.can_candump); !log) return Error{"CAN: " + log.error().message};
+      m->candumpDecoder.emplace(std::move(dec).value());
+      src = std::unique_ptr<ipc::CanSource>();
     } else if (cfg.can_source == "cannelloni") {
       src = ipc::startCannelloni(cfg.udp_bind, cfg.can_cannelloni_port, std::move(dec).value(), *m->store);
     } else {
@@ -356,6 +390,7 @@ Result<std::unique_ptr<Service>> Service::create(ServiceConfig config, const Ser
     }
     if (!src) return Error{"CAN: " + src.error().message};
     m->can = std::move(src).value();
+    m->canIn = m->can.get();
   }
 
   auto surface = openSurfacePass(cfg);
@@ -392,25 +427,44 @@ Result<std::unique_ptr<Service>> Service::create(ServiceConfig config, const Ser
     spdlog::info("serve: playing scenario {} ({} s{}) until a host sends (UDP or CAN)", scenario->name, scenario->duration_s,
                  cfg.scenario_loop ? ", looped" : "");
     const ipc::UdpReceiver* udpIn = m->udp.get();
-    const ipc::CanSource* canIn = m->can.get();
+    const std::atomic<const ipc::CanSource*>* canIn = &m->canIn;
     m->player = std::make_unique<ScenarioPlayer>(std::move(*scenario), cfg.scenario_loop, *m->store, [udpIn, canIn] {
-      return udpIn->stats().applied > 0 || (canIn && canIn->stats().matched > 0);
+      const ipc::CanSource* can = canIn->load();
+      return udpIn->stats().applied > 0 || (can && can->stats().matched > 0);
     });
+  }
+  m->hostLinks.resize(cfg.channels.size());
+  m->hostFrames.resize(cfg.channels.size());
+  m->hostPtrs.assign(cfg.channels.size(), nullptr);
+  for (std::size_t c = 0; c < cfg.channels.size(); ++c) {
+    const ChannelConfig& ch = cfg.channels[c];
+    if (ch.depth_from.empty()) continue;
+    m->hostLinks[c] = std::make_unique<HostDepthLink>(ch.depth_from, ch.width, ch.height, ch.name);
+    std::lock_guard lock(m->board.mutex);
+    m->board.host_depth.emplace_back(ch.name, HostDepthCounts{});
   }
   m->heart = std::make_unique<Heartbeat>(m->writers);
   m->watch.emplace(*m->store, cfg.traffic_timeout_s);
   m->sink.emplace(m->writers, m->config.channels);
 
   for (const auto& ch : cfg.channels) {
-    if (ch.frustum_deg) {
+    if (!ch.depth_from.empty()) {
+      spdlog::info("serve: channel /fogbeam.{} {}x{} {}: the view and distances of host depth channel /fogbeam.{}", ch.name,
+                   ch.width, ch.height, ch.format, ch.depth_from);
+    } else if (ch.frustum_deg) {
       spdlog::info("serve: channel /fogbeam.{} {}x{} {} frustum [{}, {}, {}, {}]°", ch.name, ch.width, ch.height, ch.format,
                    (*ch.frustum_deg)[0], (*ch.frustum_deg)[1], (*ch.frustum_deg)[2], (*ch.frustum_deg)[3]);
     } else {
       spdlog::info("serve: channel /fogbeam.{} {}x{} {} fov {}°", ch.name, ch.width, ch.height, ch.format, ch.fov_x_deg);
     }
   }
-  spdlog::info("serve: world {}, {} at {} Hz, UDP {}:{}, status port {}", m->worldPath,
-               cfg.lock_step ? "lock-step" : "free-running", cfg.rate_hz, cfg.udp_bind, m->udpPort, m->statusPort);
+  const bool hostPaced = std::any_of(cfg.channels.begin(), cfg.channels.end(),
+                                     [](const ChannelConfig& ch) { return !ch.depth_from.empty(); });
+  spdlog::info("serve: world {}, {}, UDP {}:{}, status port {}", m->worldPath,
+               cfg.lock_step ? (hostPaced ? std::string("lock-step on the host's depth frames")
+                                          : std::string("lock-step on frame requests"))
+                             : fmt::format("free-running at {} Hz", cfg.rate_hz),
+               cfg.udp_bind, m->udpPort, m->statusPort);
   return std::unique_ptr<Service>(new Service(std::move(m)));
 }
 
@@ -434,7 +488,16 @@ Clock::time_point Service::Impl::updateStatus(const ipc::SimSnapshot& snap, std:
     board.traffic = sink->traffic;
     board.traffic_expired = store->expiredTotal();
     board.tables_pending = sink->pending;
-    board.input = playing() ? "scenario" : snap.ego.stamp.valid ? snap.ego.stamp.source : "none";
+    // The source of the newest message that set the state (a host driving the lamps over
+    // CAN while the scenario's ego pose stays is "can …", not "scenario").
+    const ipc::Stamp* newest = nullptr;
+    for (const ipc::Stamp* s : {&snap.ego.stamp, &snap.lamps.stamp, &snap.environment.stamp, &snap.vehicle_speed_m_s.stamp})
+      if (s->valid && (!newest || s->received > newest->received)) newest = s;
+    board.input = playing() ? "scenario" : newest ? newest->source : "none";
+    board.vehicle_speed_m_s = snap.vehicle_speed_m_s.stamp.valid ? static_cast<double>(snap.vehicle_speed_m_s.value) : -1.0;
+    board.frame_requests_refused = frameRequestsRefused;
+    for (std::size_t c = 0, k = 0; c < hostLinks.size(); ++c)
+      if (hostLinks[c]) board.host_depth[k++].second = hostLinks[c]->counts();
   }
   const ipc::UdpStats st = udp->stats();
   spdlog::info("serve: {} frames, {:.1f} fps; frame p50 {:.1f} ms p95 {:.1f} (surface {:.1f}, airlight {:.1f}); "
@@ -467,12 +530,26 @@ Status Service::run(const RunLimits& limits) {
   std::uint64_t windowFrames = 0, framesThisRun = 0;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / cfg.rate_hz));
   std::optional<Error> failure;
+  const bool hostPaced = std::any_of(m.hostLinks.begin(), m.hostLinks.end(), [](const auto& l) { return l != nullptr; });
   while (!m.stopRequested.load() && !failure) {
     if (limits.duration_s > 0.0 && Clock::now() - start > std::chrono::duration<double>(limits.duration_s)) break;
     if (limits.frames > 0 && framesThisRun >= limits.frames) break;
     auto snap = m.store->snapshot();
     std::uint64_t requested = 0;
-    if (cfg.lock_step) {
+    if (cfg.lock_step && hostPaced) {
+      // The host's depth frames are the requests: a frame once every depth-fed channel has a
+      // host frame newer than the one it last rendered (a host draws all its channels each
+      // frame); polled every 200 µs, one atomic load per channel.
+      const auto t = Clock::now();
+      bool ready = true;
+      for (auto& link : m.hostLinks)
+        if (link && !link->newFrameReady(t)) ready = false;
+      if (!ready) {
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+        continue;
+      }
+      snap = m.store->snapshot();
+    } else if (cfg.lock_step) {
       // A frame per new request; polled every 200 µs (0.2 ms of a request's latency at most).
       if (!snap->frame_request.stamp.valid || snap->frame_request.stamp.sequence == m.lastRequestSeq) {
         std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -480,6 +557,16 @@ Status Service::run(const RunLimits& limits) {
       }
       m.lastRequestSeq = snap->frame_request.stamp.sequence;
       requested = snap->frame_request.value.frame;
+      if (requested == 0) {
+        // Frame numbers start at 1: a `latest` word of 0 means "no frame yet" (docs/shm.md), so
+        // frame 0 could never be seen. Refused, counted, logged at most once per second.
+        ++m.frameRequestsRefused;
+        if (Clock::now() - m.lastRefusedRequestLog >= std::chrono::seconds(1)) {
+          spdlog::warn("serve: frame request for frame 0 refused (frames start at 1; {} so far)", m.frameRequestsRefused);
+          m.lastRefusedRequestLog = Clock::now();
+        }
+        continue;
+      }
     } else {
       // Until the frame is due, in slices of at most kStopCheck, so that a stop request at a
       // low rate is not kept waiting for a whole period; the last slice ends on time.
@@ -494,6 +581,18 @@ Status Service::run(const RunLimits& limits) {
     ++framesThisRun;
     const auto now = Clock::now();
     m.watch->check(*snap, now, m.playing());
+    // Host views: the newest of each depth-fed channel (or its last one, when the host is slow,
+    // stopped or gone: HostDepthLink).
+    for (std::size_t c = 0; c < m.hostLinks.size(); ++c) {
+      HostDepthLink* link = m.hostLinks[c].get();
+      m.hostPtrs[c] = nullptr;
+      if (!link || !link->poll(now)) continue;
+      m.hostFrames[c] = HostFrame{&link->view(), &link->surface()};
+      m.hostPtrs[c] = &m.hostFrames[c];
+      // Lock-step on depth frames: the frame number and request are the host's (the first
+      // depth-fed channel's).
+      if (cfg.lock_step && requested == 0) requested = link->view().frame;
+    }
 
     // The step: every channel rendered from this snapshot, mapped to the wire and published.
     FrameBookkeeping book;
@@ -501,12 +600,25 @@ Status Service::run(const RunLimits& limits) {
     book.frame_request = requested;
     m.sink->pending = false;
     std::size_t failed = 0;
-    if (Status s = m.pipeline->step(*snap, now, book, *m.sink, &failed); !s) {
+    if (Status s = m.pipeline->step(*snap, now, book, *m.sink, &failed, m.hostPtrs); !s) {
       spdlog::error("serve: channel {}: {}", cfg.channels[failed].name, s.error().message);
       failure = Error{"channel " + cfg.channels[failed].name + ": " + s.error().message};
       m.stopRequested = true;  // a renderer that failed is not trusted with another frame
     } else {
       m.frames.store(frame);  // published on every channel
+      if (m.candumpDecoder) {
+        // The first frame is out: the candump replay starts now (create()).
+        auto src = ipc::startCandumpReplay(cfg.can_candump, cfg.can_candump_speed, std::move(*m.candumpDecoder), *m.store);
+        m.candumpDecoder.reset();
+        if (!src) {
+          failure = Error{"CAN: " + src.error().message};  // the log changed since create()
+          break;
+        }
+        std::lock_guard life(m.life);
+        m.can = std::move(src).value();
+        m.canIn = m.can.get();
+        spdlog::info("serve: candump replay of {} started with the first frame", cfg.can_candump);
+      }
     }
     ++windowFrames;
     if (Clock::now() >= nextStatus) {

@@ -75,6 +75,7 @@ constexpr std::array kUdpKeys{
     KeySpec{"multicast"},
     KeySpec{"allow"},
     KeySpec{"traffic_timeout_s"},
+    KeySpec{"max_traffic_objects"},
 };
 constexpr std::array kCanKeys{
     KeySpec{"source"},
@@ -97,6 +98,7 @@ constexpr std::array kChannelKeys{
     KeySpec{"format"},
     KeySpec{"distance"},
     KeySpec{"exposure_ev"},
+    KeySpec{"depth_from"},
 };
 constexpr std::array kEgoKeys{
     KeySpec{"eye_m"},
@@ -247,6 +249,9 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
       c.udp_multicast = s.optString("multicast").value_or(c.udp_multicast);
       if (auto allow = s.optStrings("allow")) c.udp_allow = *allow;
       c.traffic_timeout_s = s.number("traffic_timeout_s", Range{0.0, 60.0, true, false}, c.traffic_timeout_s);
+      c.max_traffic_objects = static_cast<std::size_t>(
+          s.integer("max_traffic_objects", 1, static_cast<std::int64_t>(kMaxTrafficObjectsLimit),
+                    static_cast<std::int64_t>(c.max_traffic_objects)));
     }
     if (const toml::table* t = is.optTable("can")) {
       const Section s(name, *t, "[input.can]");
@@ -299,6 +304,13 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
       ch.format = s.choice("format", formats, ch.format);
       ch.distance = s.boolean("distance", false);
       ch.exposure_ev = s.number("exposure_ev", Range{-20.0, 20.0}, 0.0);
+      if (const auto from = s.optString("depth_from")) {
+        if (!ipc::validChannelName(*from))
+          s.failAt(*s.find("depth_from"), "depth_from",
+                   "expected a host depth channel name: 1–" + std::to_string(ipc::kMaxChannelName) +
+                       " letters, digits, '_', '-' or '.', found " + config::inQuotes(*from));
+        ch.depth_from = *from;
+      }
       for (const ChannelConfig& other : c.channels) {
         if (other.name == ch.name) s.failAt(*s.find("name"), "name", "expected a unique name, found " + config::inQuotes(ch.name) + " again");
       }
@@ -411,6 +423,19 @@ Status validate(const ServiceConfig& c) {
     if (ch.format != "rgba8-srgb" && ch.exposure_ev != 0.0) {
       return Error{where + ": [[channel]] " + ch.name + ": exposure_ev applies to rgba8-srgb only"};
     }
+    if (!ch.depth_from.empty()) {
+      // The host has the surfaces: what fogbeam adds is the overlay (RGB in-scattered, A = T).
+      if (ch.format != "rgba16f-overlay")
+        return Error{where + ": [[channel]] " + ch.name + ": depth_from = \"" + ch.depth_from +
+                     "\" needs format = \"rgba16f-overlay\" (the host has the surfaces), found \"" + ch.format + "\""};
+      for (const ChannelConfig& other : c.channels)
+        if (other.name == ch.depth_from)
+          return Error{where + ": [[channel]] " + ch.name + ": depth_from = \"" + ch.depth_from +
+                       "\" names one of fogbeam's own output channels; it must be the host's depth channel"};
+      if (c.effects.render.airlight == AirlightDevice::Gpu)
+        return Error{where + ": [[channel]] " + ch.name + ": depth_from needs [render] airlight = \"cpu\" (the GPU "
+                             "airlight is a stage of the surface pass, which a host depth channel does not run)"};
+    }
   }
   if (c.ego.lamps.empty()) return Error{where + ": [ego] has no [[ego.lamp]]"};
   if (!c.traffic.contains(0)) return Error{where + ": no [[traffic_class]] with class = 0 (the default rig)"};
@@ -498,7 +523,8 @@ std::string toToml(const ServiceConfig& c) {
   o << "\n[input.udp]\nbind = " << quoted(c.udp_bind) << "\nport = " << c.udp_port
     << "\nmulticast = " << quoted(c.udp_multicast) << "\nallow = [";
   for (std::size_t i = 0; i < c.udp_allow.size(); ++i) o << (i ? ", " : "") << quoted(c.udp_allow[i]);
-  o << "]\ntraffic_timeout_s = " << num(c.traffic_timeout_s) << "\n";
+  o << "]\ntraffic_timeout_s = " << num(c.traffic_timeout_s) << "\nmax_traffic_objects = " << c.max_traffic_objects
+    << "\n";
   o << "\n[input.can]\nsource = " << quoted(c.can_source) << "\ninterface = " << quoted(c.can_interface)
     << "\ncandump = " << quoted(c.can_candump) << "\ncandump_speed = " << num(c.can_candump_speed)
     << "\ncannelloni_port = " << c.can_cannelloni_port << "\nmapping = " << quoted(c.can_mapping_path) << "\n";
@@ -510,7 +536,8 @@ std::string toToml(const ServiceConfig& c) {
       << "\neye_offset_m = " << vec(ch.eye_offset_m)
       << "\nyaw_deg = " << num(ch.yaw_deg) << "\npitch_deg = " << num(ch.pitch_deg) << "\nroll_deg = " << num(ch.roll_deg)
       << "\nformat = " << quoted(ch.format) << "\ndistance = " << flag(ch.distance)
-      << "\nexposure_ev = " << num(ch.exposure_ev) << "\n";
+      << "\nexposure_ev = " << num(ch.exposure_ev) << (ch.depth_from.empty() ? "" : "\ndepth_from = " + quoted(ch.depth_from))
+      << "\n";
   }
   o << "\n[ego]\neye_m = " << vec(c.eye_m) << "\nbending_max_deg = " << num(c.bending_max_deg)
     << "\nbending_tolerance_deg = " << num(c.bending_tolerance_deg) << "\n";

@@ -69,7 +69,12 @@ Decoded decodeWith(const DbcDatabase& dbc, const CanMapping& mapping, const std:
   const auto snap = store.snapshot();
   Decoded out;
   out.lights = d->lights(now);
-  EXPECT_EQ(snap->lamps.value.lights, out.lights);
+  // The mapped bits merge into the initial mask (low beam + position until the first lamp
+  // state, docs/service.md); the bits the mapping leaves out keep their initial values.
+  std::uint32_t owned = 0;
+  for (std::size_t k = 0; k < kCanLampCount; ++k)
+    if (mapping.lamps[k]) owned |= kCanLampBits[k];
+  EXPECT_EQ(snap->lamps.value.lights, (light::kInitialEgo & ~owned) | out.lights);
   if (snap->vehicle_speed_m_s.stamp.valid) out.speed_m_s = snap->vehicle_speed_m_s.value;
   return out;
 }

@@ -90,21 +90,21 @@ TEST(CanInput, SilentLampSignalsAreHeldThenFallBack) {
   ASSERT_TRUE(dbc);
   auto d = CanDecoder::create(*dbc, m);
   ASSERT_TRUE(d);
-  StateStore store;
+  StateStore store;  // position stays on: the initial mask's, not mapped (docs/service.md)
   const auto t0 = Clock::now();
   d->onFrame(stalk(0x40), t0);  // high beam only
   d->publish(store, t0, "test");
-  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kHighBeam);
+  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kHighBeam | light::kPosition);
   d->publish(store, t0 + std::chrono::milliseconds(150), "test");  // within hold: unchanged
-  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kHighBeam);
+  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kHighBeam | light::kPosition);
   d->publish(store, t0 + std::chrono::milliseconds(300), "test");  // silent: fallback
-  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kLowBeam);
+  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kLowBeam | light::kPosition);
   EXPECT_EQ(d->stats().fallbacks, 3u);  // low, high, front fog each went silent once
   d->publish(store, t0 + std::chrono::milliseconds(400), "test");
   EXPECT_EQ(d->stats().fallbacks, 3u);  // logged once per transition
   d->onFrame(stalk(0x20), t0 + std::chrono::milliseconds(500));
   d->publish(store, t0 + std::chrono::milliseconds(500), "test");
-  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kLowBeam);
+  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kLowBeam | light::kPosition);
 }
 
 TEST(CanInput, MappingErrorsNameWhatIsMissing) {
@@ -162,7 +162,7 @@ TEST(CanInput, CannelloniOverLoopbackFeedsTheStoreAndSurvivesGarbage) {
   p.frames = {stalk(0x40), speed(36.0)};
   const auto bytes = encodeCannelloni(p);
   ::sendto(fd.get(), bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof to);
-  ASSERT_TRUE(waitFor([&] { return store.snapshot()->lamps.value.lights == light::kHighBeam; }))
+  ASSERT_TRUE(waitFor([&] { return store.snapshot()->lamps.value.lights == (light::kHighBeam | light::kPosition); }))
       << "lights " << store.snapshot()->lamps.value.lights;
   EXPECT_NEAR(store.snapshot()->vehicle_speed_m_s.value, 10.0f, 1e-4f);
   EXPECT_EQ((*src)->stats().matched, 2u);

@@ -208,6 +208,8 @@ TEST(LayoutDocs, ShmTablesEqualShmLayoutH) {
                   FIELD(FOGBEAM_SLOT_FRAME_REQUEST, "u64", "frame request"),
                   FIELD(FOGBEAM_SLOT_FOV_X, "f32", "horizontal field of view"),
                   FIELD(FOGBEAM_SLOT_FOV_Y, "f32", "vertical field of view"),
+                  FIELD(FOGBEAM_SLOT_FRUSTUM, "f32 ×4", "off-axis frustum"),
+                  FIELD(FOGBEAM_SLOT_HOST_FRAME, "u64", "host frame"),
               });
 }
 

@@ -116,8 +116,8 @@ TEST(ServiceUnderLoad, EveryThreadBusyAtOnceAndStopEndsThem) {
 
   // The host: the scenario's states at 60 Hz over UDP but for their lamp messages, and the light
   // stalk over CAN at 50 Hz with the high beam on: the lamp bits come from CAN alone, so the frames
-  // must show its high beam. (A UDP lamp message would take the CAN's bits over until the stalk
-  // changes: a known gap against docs/can.md, left to the issue that owns it.)
+  // must show its high beam. (A UDP lamp message could not take them over either: the CAN
+  // mapping owns the bits it maps, docs/can.md; tests/ipc/test_input_promises.cpp.)
   std::atomic<bool> sending{true};
   std::atomic<std::uint64_t> datagrams{0}, canPackets{0};
   std::thread host([&] {

@@ -329,15 +329,20 @@ def can_silent():
     reader.close()
     out = stop(p)
     logs = re.findall(r"can: ([a-z ]+?) signal (\w+) silent for more than 0\.25 s: falling back to (on|off)", out)
-    # Each mapped lamp signal goes silent once at start (never seen) and once after the stop.
-    expect = {("low beam", "LOW_BEAM", "on"), ("high beam", "HIGH_BEAM", "off"), ("front fog", "FRONT_FOG", "off")}
-    assert set(logs) == expect and len(logs) == 6, f"silence logs: {logs}\n{out}"
     back = re.findall(r"can: ([a-z ]+?) signal \w+ is back", out)
-    assert sorted(back) == ["front fog", "high beam", "low beam"], back
+    # Each mapped lamp signal goes silent once after the stop. At start too (never seen) when the
+    # CAN input ran for hold_s before the first stalk frame (the first frame's table build takes
+    # longer than that, unless the tables come from the cache), and then it is back once; never
+    # before the input has run for hold_s (docs/can.md).
+    expect = {("low beam", "LOW_BEAM", "on"), ("high beam", "HIGH_BEAM", "off"), ("front fog", "FRONT_FOG", "off")}
+    assert len(back) in (0, 3), back
+    assert set(logs) == expect and len(logs) == 3 + len(back), f"silence logs: {logs}, back: {back}\n{out}"
+    assert not back or sorted(back) == ["front fog", "high beam", "low beam"], back
     print(f"CAN bus silent (cannelloni): {seq} stalk frames at 50 Hz (high beam + front fog), then silence; frames "
           f"held the CAN state until {max(held):.3f} s and fell back to low beam only at {first_fallback:.3f} s "
           f"after the last frame (hold_s {hold_s}); {frames} frames, {fps:.1f} fps; {auditor.summary()}")
-    print(f"  logged per signal: {sorted(set(logs))} (each at start, never seen, and after the stop), back: {back}")
+    print(f"  logged per signal: {sorted(set(logs))} ({len(logs)} lines: after the stop"
+          f"{', and at start, never seen' if back else ''}), back: {back}")
 
 
 try:

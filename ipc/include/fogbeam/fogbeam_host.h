@@ -49,6 +49,9 @@ typedef struct fogbeam_frame_info {
   uint64_t frame_request;    /* lock-step request answered, 0 = free-running */
   uint64_t publish_ns;       /* CLOCK_MONOTONIC at publish */
   uint32_t width, height, format;
+  float fov_x_deg, fov_y_deg;  /* the view's whole horizontal and vertical extent (deg) */
+  float frustum_deg[4];        /* off-axis view: left, right, up, down half-angles (deg); all 0 = centred */
+  uint64_t host_frame;         /* the host depth frame (fogbeam_camera.frame) this overlay is for; 0 = none */
 } fogbeam_frame_info;
 
 /* ---- Host depth input: the host publishes its own distance buffer and camera, which fogbeam
@@ -56,18 +59,25 @@ typedef struct fogbeam_frame_info {
 typedef struct fogbeam_depth_writer fogbeam_depth_writer;
 
 typedef struct fogbeam_camera {
-  uint64_t frame;          /* the host's frame number */
+  uint64_t frame;          /* the host's frame number, from 1 (0 is refused: 0 means "no frame yet") */
   double sim_time_s;       /* simulation time of this view */
   double position_m[3];    /* eye (world, docs/physics.md axes: x forward, y left, z up) */
   float yaw_deg, pitch_deg, roll_deg;  /* positive pitch = nose down */
-  float fov_x_deg;         /* horizontal field of view of a centred pinhole */
+  float fov_x_deg;         /* horizontal field of view of a centred pinhole (ignored when frustum_deg is set) */
   float fov_y_deg;         /* 0 = from width/height (square pixels) */
+  /* Off-axis (multi-channel cabs): left, right, up, down half-angles from the view axis in deg,
+   * positive outwards, each in (-89, 89), left + right > 0, up + down > 0, square pixels
+   * (height = width (tan up + tan down) / (tan left + tan right) within half a pixel). All 0 = the
+   * centred pinhole of fov_x_deg. */
+  float frustum_deg[4];
 } fogbeam_camera;
 
 /* Creates channel `name` (mode 0600) for width × height distances. FOGBEAM_OK or FOGBEAM_ERROR. */
 int fogbeam_depth_create(const char* name, uint32_t width, uint32_t height, fogbeam_depth_writer** out);
 /* Publishes one view: width·height floats, the distance along each pixel's ray in metres
- * (+inf for sky), row 0 at the top. Never waits for fogbeam. */
+ * (+inf for sky), row 0 at the top. Never waits for fogbeam. FOGBEAM_ERROR for frame 0. fogbeam
+ * answers with an overlay whose fogbeam_frame_info.host_frame is camera->frame
+ * (docs/service.md, "Host depth"). */
 int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, const fogbeam_camera* camera);
 void fogbeam_depth_destroy(fogbeam_depth_writer* w);
 

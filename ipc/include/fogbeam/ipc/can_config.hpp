@@ -20,6 +20,8 @@
 #include <fogbeam/util/key_table.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <array>
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -29,13 +31,21 @@ namespace fogbeam::ipc {
 struct CanConfig {
   std::string dbc_path;  ///< resolved against the configuration file's directory
   CanMapping mapping;
+  /// Where each signal was named, for makeDecoder()'s errors: the mapping file ("" for a
+  /// configuration built in code) and the line of each [lamps] entry (by CanLamp) and of
+  /// `speed` (0 = not named).
+  std::string file;
+  std::array<std::size_t, kCanLampCount> lamp_lines{};
+  std::size_t speed_line = 0;
 };
 
 /// Parses the table in `text` (`fileName` for messages, `baseDir` for the DBC path).
 [[nodiscard]] Result<CanConfig> parseCanConfig(std::string_view text, const std::string& fileName,
                                                const std::string& baseDir);
 [[nodiscard]] Result<CanConfig> loadCanConfig(const std::string& path);
-/// Loads the DBC a configuration names and builds the decoder (errors name the DBC file).
+/// Loads the DBC a configuration names and builds the decoder. A message or signal the DBC
+/// lacks is an error that names the mapping file, the line, the table and the key that name it,
+/// then the DBC file and what it has ("map.toml:8: [lamps] low_beam: vehicle.dbc: no signal …").
 [[nodiscard]] Result<CanDecoder> makeDecoder(const CanConfig& config);
 
 /// The mapping's key tables in docs/can.md (config::KeyTable): the top level, the signal keys of

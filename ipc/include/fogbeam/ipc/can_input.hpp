@@ -9,6 +9,17 @@
 // Lamp signals are read as booleans (physical value ≠ 0 = on). A lamp signal that has not been
 // seen for `hold_s` keeps its last value until then and then falls back to the configured
 // default (off unless set in `fallback_lights`); the transition to and from "silent" is logged.
+// A signal not seen yet is silent once `hold_s` has passed since the decoder's first publish
+// (its source's start); until then it is unknown and its bit is left as the store has it (the
+// documented initial mask, or a host's lamp state).
+//
+// The CAN mapping owns the bits it maps (StateStore::setBusLights): a UDP lamp state does not
+// change them. The lamps' stamp carries the receipt of the newest frame that carried a mapped
+// lamp signal, so a stalk frame that repeats the same value refreshes it (input-to-publish
+// latency counts from the newest input) without changing a bit.
+//
+// A candump replay that reaches the end of its log stops there: its last values are kept, with
+// no fallback and no silence line (a finished log is not a silent bus); the end is logged once.
 //
 // Thread-safety: a CanDecoder is used by one thread (its source's); sources are started and
 // stopped from one thread.
@@ -70,13 +81,16 @@ class CanDecoder {
   /// Decodes one frame received at `now`; true when it carried a mapped signal.
   bool onFrame(const CanFrame& frame, Clock::time_point now);
   /// Publishes the lamp state (held values, fallbacks for silent signals) and the speed to the
-  /// store when they changed or every call with `force`; `source` goes into the stamps.
+  /// store when they changed, the lamps also when a frame carried a lamp signal since the last
+  /// call (a newer stamp, the same bits), and both every call with `force`; `source` goes into
+  /// the stamps. The first call starts the silence clock of the signals not seen yet.
   void publish(StateStore& store, Clock::time_point now, const std::string& source, bool force = false);
 
   /// The CAN ids (and extended flags) the mapping needs: for kernel filters.
   [[nodiscard]] std::vector<std::pair<std::uint32_t, bool>> ids() const;
   [[nodiscard]] const CanStats& stats() const noexcept { return stats_; }
-  /// The lamp bits as of `now` (for tests and status).
+  /// The lamp bits as of `now` (for tests and status); a lamp not known yet (never seen, and
+  /// `hold_s` not passed since the first publish) is off here.
   [[nodiscard]] std::uint32_t lights(Clock::time_point now) const;
 
  private:
@@ -89,12 +103,19 @@ class CanDecoder {
     Clock::time_point seen{};
     bool silentLogged = false;
   };
+  /// A lamp signal's state as of `now`: seen within hold_s, silent (fallback), or not known yet.
+  enum class SignalState : std::uint8_t { Fresh, Silent, Unknown };
+  [[nodiscard]] SignalState stateOf(const Bound& b, Clock::time_point now) const;
+
   CanMapping mapping_;
   std::vector<std::pair<std::uint32_t, bool>> ids_;  // (id, extended) of the mapped messages
   std::array<Bound, kCanLampCount> lamps_{};
   Bound speed_{};
   CanStats stats_;
-  std::uint32_t lastLights_ = 0xFFFFFFFFu;
+  Clock::time_point started_{};      ///< the first publish: silence of unseen signals counts from here
+  std::uint32_t lastLights_ = 0xFFFFFFFFu;  ///< the known bits last published
+  std::uint32_t lastKnown_ = 0;      ///< which bits were known then
+  Clock::time_point lastLampSeen_{};  ///< the newest lamp signal's receipt last published
   double lastSpeed_ = -1.0;
   std::uint32_t sequence_ = 0;
 };

@@ -50,6 +50,10 @@ inline constexpr std::uint32_t kRearFog = 0x200;
 inline constexpr std::uint32_t kDrl = 0x800;
 inline constexpr std::uint32_t kKnown =
     kPosition | kLowBeam | kHighBeam | kBrake | kIndicatorLeft | kIndicatorRight | kFrontFog | kRearFog | kDrl;
+/// The ego's light mask until the first lamp state (docs/service.md, "How a frame is made",
+/// step 3): low beam + position. The state store starts with it, so that bits a CAN input sets
+/// before any lamp message merge into it.
+inline constexpr std::uint32_t kInitialEgo = kLowBeam | kPosition;
 }  // namespace light
 
 struct Header {
@@ -128,7 +132,7 @@ enum class DropReason : std::uint8_t {
   SenderNotAllowed,  ///< source address not on the allow-list (receiver)
   Duplicate,         ///< sequence number already seen (receiver)
   OutOfOrder,        ///< older than the newest seen from this sender (receiver)
-  TooManyObjects,    ///< the state store's traffic limit is reached (receiver)
+  TooManyObjects,    ///< a traffic list none of whose objects fit the state store's bound (receiver)
   Count_
 };
 inline constexpr std::size_t kDropReasonCount = static_cast<std::size_t>(DropReason::Count_);

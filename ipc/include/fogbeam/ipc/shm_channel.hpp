@@ -60,6 +60,12 @@ struct FrameMeta {
   std::uint64_t publish_ns = 0; ///< CLOCK_MONOTONIC, set by publish()
   float fov_x_deg = 0.0f;       ///< camera field of view (host depth input; 0 elsewhere)
   float fov_y_deg = 0.0f;       ///< 0 = from the aspect ratio
+  /// Off-axis view: left, right, up, down half-angles from the view axis, deg (positive
+  /// outwards); all 0 = a centred pinhole given by fov_x_deg (and fov_y_deg).
+  std::array<float, 4> frustum_deg{0.0f, 0.0f, 0.0f, 0.0f};
+  /// On fogbeam's frames: the host depth frame (its `frame`) the frame was rendered on; 0 = a
+  /// view of fogbeam's own (docs/service.md, depth_from).
+  std::uint64_t host_frame = 0;
 };
 
 /// Bytes per pixel of a FOGBEAM_FORMAT_* value (0 for an unknown one).

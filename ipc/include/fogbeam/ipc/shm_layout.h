@@ -18,7 +18,9 @@
 #include <stdint.h>
 
 #define FOGBEAM_SHM_MAGIC 0x53424746u /* bytes "FGBS" */
-#define FOGBEAM_SHM_VERSION 1u
+/* Version 2 (fogbeam 0.x, issue 16): the slot metadata gained the off-axis frustum (144) and the
+ * host frame (160). A version-1 reader refuses a version-2 segment by this number, and back. */
+#define FOGBEAM_SHM_VERSION 2u
 #define FOGBEAM_SHM_HEADER_SIZE 256u
 #define FOGBEAM_SHM_SLOT_META_SIZE 256u
 
@@ -75,5 +77,7 @@
 #define FOGBEAM_SLOT_FRAME_REQUEST 128  /* u64: lock-step frame request answered (0 = free-running) */
 #define FOGBEAM_SLOT_FOV_X 136          /* f32 deg: horizontal field of view of the centred pinhole */
 #define FOGBEAM_SLOT_FOV_Y 140          /* f32 deg: vertical field of view; 0 = from width/height (square pixels) */
+#define FOGBEAM_SLOT_FRUSTUM 144        /* f32 ×4 deg: left, right, up, down half-angles of an off-axis view; all 0 = centred (fov) */
+#define FOGBEAM_SLOT_HOST_FRAME 160     /* u64: the host depth frame this frame was rendered on (0 = fogbeam's own view) */
 
 #endif /* FOGBEAM_SHM_LAYOUT_H */

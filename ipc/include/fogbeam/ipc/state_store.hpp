@@ -12,6 +12,11 @@
 // expires when it has not been updated for `traffic_timeout_s` (StateStoreOptions); expired
 // objects are skipped by SimSnapshot::live() and purged by expire(). Memory is bounded by
 // `max_traffic_objects`: updates that would exceed it are refused and counted.
+//
+// Lamps: the mask starts as light::kInitialEgo (low beam + position, docs/service.md) and its
+// stamp stays invalid until the first lamp state. A bus input (CAN) owns the bits its mapping
+// maps (docs/can.md): setBusLights() claims and sets them, and setLamps() (UDP, scenario) leaves
+// them as they are and sets the others.
 #pragma once
 
 #include <fogbeam/ipc/protocol.hpp>
@@ -80,7 +85,17 @@ class StateStore {
 
   // Writers (thread-safe among themselves).
   void setEgo(const EgoState& v, const Stamp& s);
+  /// A host's lamp state (UDP, scenario): its bits replace the mask's, except those a bus input
+  /// owns (setBusLights()), which keep their values; the bending angle is taken as given.
   void setLamps(const LampState& v, const Stamp& s);
+  /// A bus input's lamp bits (light:: bits; the CAN input): the bits of `owned` are this input's
+  /// from now on, and setLamps() no longer changes them. The bits of `known` (within `owned`:
+  /// the signals decoded or fallen back so far) take their values from `bits`; the rest of the
+  /// mask and the bending angle stay. With `known` 0 the bits are claimed and nothing is
+  /// published. The lamps' stamp becomes `s`, with the later of the two receive times: `s`
+  /// carries the receipt of the newest bus frame used, which may be older than a host's lamp
+  /// state that the mask still holds (input-to-publish latency counts from the newest input).
+  void setBusLights(std::uint32_t owned, std::uint32_t known, std::uint32_t bits, const Stamp& s);
   void setEnvironment(const Environment& v, const Stamp& s);
   void setFrameRequest(const FrameRequest& v, const Stamp& s);
   void setVehicleSpeed(float speed_m_s, const Stamp& s);
@@ -104,6 +119,7 @@ class StateStore {
   std::mutex writers_;
   std::atomic<std::shared_ptr<const SimSnapshot>> current_;
   std::atomic<std::uint64_t> expired_{0};  ///< expire() purges, for the log and the status reply
+  std::uint32_t busOwnedLights_ = 0;  ///< light:: bits a bus input owns (setBusLights); under writers_
 };
 
 }  // namespace fogbeam::ipc

@@ -39,13 +39,16 @@ struct UdpReceiverOptions {
   int receive_buffer_bytes = 1 << 20;      ///< SO_RCVBUF request
 };
 
+/// Every datagram counts once: datagrams = applied + the sum of dropped.
 struct UdpStats {
   std::uint64_t datagrams = 0;  ///< received, valid or not
-  std::uint64_t applied = 0;    ///< decoded and applied to the state store
+  /// decoded and applied to the state store (a traffic list also when the store refused some
+  /// of its objects, not when it refused all: that is a too_many_objects drop)
+  std::uint64_t applied = 0;
   std::array<std::uint64_t, 6> applied_by_type{};  ///< index = MessageType value
   std::array<std::uint64_t, kDropReasonCount> dropped{};  ///< index = DropReason
   std::uint64_t restarts = 0;   ///< sender restarts detected from sequence numbers
-  std::uint64_t traffic_refused = 0;  ///< objects refused by a full state store
+  std::uint64_t traffic_refused = 0;  ///< objects refused by a full state store (max_traffic_objects)
   /// poll/recvfrom failures other than "nothing to read" or a signal (logged at most once per
   /// second, like drops); the receiver goes on.
   std::uint64_t receive_errors = 0;

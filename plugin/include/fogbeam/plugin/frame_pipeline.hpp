@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -75,9 +76,12 @@ class FramePipeline {
   /// The step: renders every channel of `state` as of `now` (traffic liveness) and hands each
   /// frame to `sink` with `book` (frame number and request as given; latency_ms measured here).
   /// Stops at the first error, of a renderer or of the sink; `failedChannel` (may be null)
-  /// then receives its channel.
+  /// then receives its channel. `hosts` (empty, or one per channel): the host view of each
+  /// channel with depth_from (ChannelRenderer::render); a channel with depth_from whose entry is
+  /// null (no host frame yet) is skipped: no frame, the sink is not called for it.
   [[nodiscard]] Status step(const ipc::SimSnapshot& state, ipc::Clock::time_point now, FrameBookkeeping book,
-                            FrameSink& sink, std::size_t* failedChannel = nullptr);
+                            FrameSink& sink, std::size_t* failedChannel = nullptr,
+                            std::span<const HostFrame* const> hosts = {});
 
   [[nodiscard]] const ServiceConfig& config() const noexcept { return config_; }
   [[nodiscard]] std::size_t channelCount() const noexcept { return renderers_.size(); }

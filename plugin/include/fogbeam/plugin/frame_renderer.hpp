@@ -34,12 +34,14 @@
 #pragma once
 
 #include <fogbeam/ipc/state_store.hpp>
+#include <fogbeam/plugin/host_depth.hpp>
 #include <fogbeam/plugin/service_config.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -59,6 +61,8 @@ struct FrameView {
   float yaw_deg = 0.0f, pitch_deg = 0.0f, roll_deg = 0.0f;
   /// The whole horizontal and vertical extent, deg (off-axis views: left + right, up + down).
   float fov_x_deg = 0.0f, fov_y_deg = 0.0f;
+  /// An off-axis view's half-angles left, right, up, down, deg; all 0 for a centred one.
+  std::array<float, 4> frustum_deg{0.0f, 0.0f, 0.0f, 0.0f};
 };
 
 /// The inputs a frame was made of: the state snapshot's values and stamps it used.
@@ -96,6 +100,8 @@ struct RenderedFrame {
   std::size_t airlight_evaluated = 0;  ///< pixels evaluated (the rest interpolated)
   std::size_t traffic_evaluated = 0;   ///< pixels of the traffic layer evaluated (0: no traffic lamps)
   bool pending = false;            ///< a fog or bending change is still being tabulated
+  /// The host depth frame the frame was rendered on (HostView::frame); 0 = the channel's own view.
+  std::uint64_t host_frame = 0;
   /// Glow and glare figures of the lamps that are on (LampEffectsReport: per lamp, eye
   /// illuminance in lx, veiling luminance at the image centre in cd/m², glow and glare
   /// seconds). Empty and 0 when [glow] and [glare] are both off.
@@ -119,6 +125,14 @@ struct RigPoint {
 [[nodiscard]] SceneLamp placeRigPoint(const RigPoint& point, const RigLamp& lamp, const Mat3& worldFromVehicle,
                                       const Vec3& origin_m, const Mat3* bend);
 
+/// A host's view for a channel with depth_from (docs/service.md, "Host depth"): its camera and
+/// distances replace the channel's camera and the surface pass. Both must outlive the render()
+/// call; the surface's size is the view's and the channel's.
+struct HostFrame {
+  const HostView* view = nullptr;
+  const SurfaceBuffers* surface = nullptr;  ///< distances (rgb zero)
+};
+
 class ChannelRenderer {
  public:
   /// `world`: the world scene (its world lamps, planes, glTF; camera and vehicle lamps unused).
@@ -135,7 +149,15 @@ class ChannelRenderer {
   /// same frame every time). `wait`: await table builds (lock-step, replay) instead of going on
   /// with the previous fog and bending (free-running). Errors only for failures of the renderer
   /// itself (never for input values, which the decoders have checked).
-  [[nodiscard]] Status render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait, RenderedFrame& out);
+  /// `host` (channels with depth_from): render the host's view on its distances instead of the
+  /// channel's own view and surface pass. The view is the host's camera; the ego's lamps hang
+  /// from it (the vehicle pose that puts the channel's eye, eye_m + eye_offset_m and its
+  /// rotation, at the host's camera), not from the state's ego pose; lamp bits, bending, fog and
+  /// traffic come from the state. A host view of another size than the channel is an error
+  /// (the service checks it first); one with other intrinsics (field of view, frustum) is
+  /// followed, the view tables being rebuilt once.
+  [[nodiscard]] Status render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait, RenderedFrame& out,
+                              const HostFrame* host = nullptr);
 
   [[nodiscard]] const ChannelConfig& channel() const;
   [[nodiscard]] std::uint32_t shmFormat() const;

@@ -57,6 +57,9 @@ struct ChannelConfig {
   std::string format = "rgba8-srgb";  ///< "rgba8-srgb" | "rgba16f-linear" | "rgba16f-overlay"
   bool distance = false;           ///< also publish the f32 distance plane
   double exposure_ev = 0.0;        ///< rgba8-srgb tone mapping exposure
+  /// The host's depth channel this view takes its camera and distances from (docs/service.md,
+  /// "Host depth"); empty = fogbeam's own view and surface pass.
+  std::string depth_from;
 };
 
 struct ServiceConfig {
@@ -108,6 +111,9 @@ struct ServiceConfig {
   std::string udp_multicast;
   std::vector<std::string> udp_allow;
   double traffic_timeout_s = 1.0;
+  /// The state store's bound on traffic objects (ipc::StateStoreOptions::max_traffic_objects);
+  /// objects beyond it are refused and counted (docs/protocol.md).
+  std::size_t max_traffic_objects = 256;
 
   // [input.can]
   std::string can_source = "none";  ///< "none" | "interface" | "candump" | "cannelloni"
@@ -132,6 +138,10 @@ struct ServiceConfig {
   std::map<std::uint16_t, VehicleRig> traffic;
   [[nodiscard]] const VehicleRig* rigFor(std::uint16_t vehicleClass) const;
 };
+
+/// The largest `[input.udp] max_traffic_objects`: every state-store update copies the traffic
+/// list (copy-on-write, ipc/state_store.hpp), about 0.5 MB at this many objects.
+inline constexpr std::size_t kMaxTrafficObjectsLimit = 4096;
 
 /// The channel's camera in the vehicle frame: at the driver's eye + the channel's offset, with
 /// its orientation, field of view or frustum and size.
