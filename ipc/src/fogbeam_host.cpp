@@ -14,11 +14,72 @@ struct fogbeam_reader {
 struct fogbeam_depth_writer {
   std::unique_ptr<fogbeam::ipc::ShmWriter> writer;
   std::size_t pixels = 0;
+  std::uint32_t colourFormat = 0;  ///< 0: distances only (format 4); else the pixels' format
 };
 
 namespace {
 thread_local std::string lastError;
 }
+
+namespace {
+
+int createDepthWriter(const char* fn, const char* name, uint32_t width, uint32_t height, uint32_t colourFormat,
+                      fogbeam_depth_writer** out) {
+  if (!name || !out) {
+    lastError = std::string(fn) + ": null argument";
+    return FOGBEAM_ERROR;
+  }
+  fogbeam::ipc::ShmChannelOptions o;
+  o.channel = name;
+  o.width = width;
+  o.height = height;
+  if (colourFormat == 0) {
+    o.format = FOGBEAM_FORMAT_DISTANCE_F32;
+  } else if (colourFormat == FOGBEAM_FORMAT_RGBA16F_LINEAR || colourFormat == FOGBEAM_FORMAT_RGBA8_SRGB) {
+    o.format = colourFormat;
+    o.distance = true;  // the distances in the distance plane, the colour as the pixels
+  } else {
+    lastError = std::string(fn) + ": colour format " + std::to_string(colourFormat) +
+                ": expected FOGBEAM_FORMAT_RGBA16F_LINEAR (2) or FOGBEAM_FORMAT_RGBA8_SRGB (1)";
+    return FOGBEAM_ERROR;
+  }
+  auto w = fogbeam::ipc::ShmWriter::create(o);
+  if (!w) {
+    lastError = w.error().message;
+    return FOGBEAM_ERROR;
+  }
+  *out = new fogbeam_depth_writer{std::move(w).value(), std::size_t{width} * height, colourFormat};
+  return FOGBEAM_OK;
+}
+
+fogbeam::ipc::FrameMeta cameraMeta(const fogbeam_camera* camera) {
+  fogbeam::ipc::FrameMeta m;
+  m.frame = camera->frame;
+  m.sim_time_s = camera->sim_time_s;
+  for (std::size_t k = 0; k < 3; ++k) m.position_m[k] = camera->position_m[k];
+  m.yaw_deg = camera->yaw_deg;
+  m.pitch_deg = camera->pitch_deg;
+  m.roll_deg = camera->roll_deg;
+  m.fov_x_deg = camera->fov_x_deg;
+  m.fov_y_deg = camera->fov_y_deg;
+  for (std::size_t k = 0; k < 4; ++k) m.frustum_deg[k] = camera->frustum_deg[k];
+  return m;
+}
+
+int checkPublish(const char* fn, fogbeam_depth_writer* w, const float* distance_m, const fogbeam_camera* camera) {
+  if (!w || !distance_m || !camera) {
+    lastError = std::string(fn) + ": null argument";
+    return FOGBEAM_ERROR;
+  }
+  if (camera->frame == 0) {
+    // The header's `latest` word is (frame << 8) | slot and 0 means "nothing yet" (docs/shm.md).
+    lastError = std::string(fn) + ": frame 0: host frame numbers start at 1";
+    return FOGBEAM_ERROR;
+  }
+  return FOGBEAM_OK;
+}
+
+}  // namespace
 
 extern "C" {
 
@@ -90,45 +151,38 @@ int fogbeam_latest(fogbeam_reader* r, void* dst, size_t dst_size, fogbeam_frame_
 void fogbeam_detach(fogbeam_reader* r) { delete r; }
 
 int fogbeam_depth_create(const char* name, uint32_t width, uint32_t height, fogbeam_depth_writer** out) {
-  if (!name || !out) {
-    lastError = "fogbeam_depth_create: null argument";
-    return FOGBEAM_ERROR;
-  }
-  fogbeam::ipc::ShmChannelOptions o;
-  o.channel = name;
-  o.width = width;
-  o.height = height;
-  o.format = FOGBEAM_FORMAT_DISTANCE_F32;
-  auto w = fogbeam::ipc::ShmWriter::create(o);
-  if (!w) {
-    lastError = w.error().message;
-    return FOGBEAM_ERROR;
-  }
-  *out = new fogbeam_depth_writer{std::move(w).value(), std::size_t{width} * height};
-  return FOGBEAM_OK;
+  return createDepthWriter("fogbeam_depth_create", name, width, height, 0, out);
+}
+
+int fogbeam_depth_create_colour(const char* name, uint32_t width, uint32_t height, uint32_t colour_format,
+                                fogbeam_depth_writer** out) {
+  return createDepthWriter("fogbeam_depth_create_colour", name, width, height, colour_format, out);
 }
 
 int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, const fogbeam_camera* camera) {
-  if (!w || !distance_m || !camera) {
-    lastError = "fogbeam_depth_publish: null argument";
+  if (checkPublish("fogbeam_depth_publish", w, distance_m, camera) != FOGBEAM_OK) return FOGBEAM_ERROR;
+  if (w->colourFormat != 0) {
+    lastError = "fogbeam_depth_publish: a colour channel: use fogbeam_depth_publish_colour";
     return FOGBEAM_ERROR;
   }
-  if (camera->frame == 0) {
-    // The header's `latest` word is (frame << 8) | slot and 0 means "nothing yet" (docs/shm.md).
-    lastError = "fogbeam_depth_publish: frame 0: host frame numbers start at 1";
+  w->writer->publish(cameraMeta(camera), std::as_bytes(std::span<const float>(distance_m, w->pixels)));
+  return FOGBEAM_OK;
+}
+
+int fogbeam_depth_publish_colour(fogbeam_depth_writer* w, const float* distance_m, const void* colour,
+                                 const fogbeam_camera* camera) {
+  if (checkPublish("fogbeam_depth_publish_colour", w, distance_m, camera) != FOGBEAM_OK) return FOGBEAM_ERROR;
+  if (!colour) {
+    lastError = "fogbeam_depth_publish_colour: null argument";
     return FOGBEAM_ERROR;
   }
-  fogbeam::ipc::FrameMeta m;
-  m.frame = camera->frame;
-  m.sim_time_s = camera->sim_time_s;
-  for (std::size_t k = 0; k < 3; ++k) m.position_m[k] = camera->position_m[k];
-  m.yaw_deg = camera->yaw_deg;
-  m.pitch_deg = camera->pitch_deg;
-  m.roll_deg = camera->roll_deg;
-  m.fov_x_deg = camera->fov_x_deg;
-  m.fov_y_deg = camera->fov_y_deg;
-  for (std::size_t k = 0; k < 4; ++k) m.frustum_deg[k] = camera->frustum_deg[k];
-  w->writer->publish(m, std::as_bytes(std::span<const float>(distance_m, w->pixels)));
+  if (w->colourFormat == 0) {
+    lastError = "fogbeam_depth_publish_colour: a depth-only channel (fogbeam_depth_create): use fogbeam_depth_publish";
+    return FOGBEAM_ERROR;
+  }
+  const std::size_t bytes = w->pixels * fogbeam::ipc::bytesPerPixel(w->colourFormat);
+  w->writer->publish(cameraMeta(camera), std::span<const std::byte>(static_cast<const std::byte*>(colour), bytes),
+                     std::span<const float>(distance_m, w->pixels));
   return FOGBEAM_OK;
 }
 

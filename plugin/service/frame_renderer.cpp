@@ -571,7 +571,7 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   const VehiclePose pose = host ? poseOf(host->view->camera, m.vehicleCamera) : poseOf(ego);
   // Until the first lamp state the ego drives with low beams and position lamps.
   const std::uint32_t lights =
-      state.lamps.stamp.valid ? state.lamps.value.lights : (ipc::light::kLowBeam | ipc::light::kPosition);
+      state.lamps.stamp.valid ? state.lamps.value.lights : ipc::light::kInitialEgo;
 
   // 1. Tables for the wanted fog and bending (built, awaited or still building).
   const TableKey want = m.wantedTables(state);
@@ -604,6 +604,21 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
   m.surf = host ? host->surface : &m.surface;  // a host view: its distances, no surface pass
   if (!host) {
     if (Status s = m.renderSurfaces(lit, gpuAirlightMs); !s) return s;
+  } else if (host->view->colour && m.format != FOGBEAM_FORMAT_RGBA16F_OVERLAY) {
+    // A composite of the host's own image: its surfaces seen through this frame's fog, as the
+    // surface pass gives fogbeam's own (L·T + ambient·(1 − T), T = exp(−K_t d), 0 for sky), so
+    // that composite = host·T + overlay.
+    const SurfaceBuffers& hs = *host->surface;
+    m.surface.resize(hs.width, hs.height);
+    const double kt = scene.fog.extinction_per_m;
+    const auto ia = static_cast<float>(scene.fog.ambient_cd_m2);
+    for (std::size_t k = 0; k < hs.distance.size(); ++k) {
+      const float d = hs.distance[k];
+      const float t = std::isinf(d) ? 0.0f : static_cast<float>(std::exp(-kt * static_cast<double>(d)));
+      m.surface.distance[k] = d;
+      for (std::size_t c = 0; c < 3; ++c) m.surface.rgb[3 * k + c] = hs.rgb[3 * k + c] * t + ia * (1.0f - t);
+    }
+    m.surf = &m.surface;
   }
 
   // 4. Airlight.

@@ -1,9 +1,11 @@
 // fogbeam — host depth input (host_depth.hpp).
 #include <fogbeam/ipc/shm_layout.h>
 #include <fogbeam/plugin/host_depth.hpp>
+#include <fogbeam/render/pixel_pack.hpp>
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -47,14 +49,26 @@ Result<Camera> cameraOf(const ipc::FrameMeta& m, int w, int h) {
 
 }  // namespace
 
-Result<std::unique_ptr<HostDepthInput>> HostDepthInput::attach(const std::string& channel) {
+Result<std::unique_ptr<HostDepthInput>> HostDepthInput::attach(const std::string& channel, double exposureEv) {
   auto r = ipc::ShmReader::attach(channel);
   if (!r) return r.error();
-  if ((*r)->format() != FOGBEAM_FORMAT_DISTANCE_F32)
-    return Error{"shm channel '" + channel + "' is not a host depth channel (format " +
-                 std::to_string((*r)->format()) + ", expected " + std::to_string(FOGBEAM_FORMAT_DISTANCE_F32) + ")"};
+  const std::uint32_t f = (*r)->format();
+  const bool colour = f == FOGBEAM_FORMAT_RGBA16F_LINEAR || f == FOGBEAM_FORMAT_RGBA8_SRGB;
+  if (!(f == FOGBEAM_FORMAT_DISTANCE_F32 || (colour && (*r)->hasDistance())))
+    return Error{"shm channel '" + channel + "' is not a host depth channel (format " + std::to_string(f) +
+                 ((*r)->hasDistance() ? "" : " without a distance plane") + ", expected " +
+                 std::to_string(FOGBEAM_FORMAT_DISTANCE_F32) + ", or " + std::to_string(FOGBEAM_FORMAT_RGBA16F_LINEAR) +
+                 " or " + std::to_string(FOGBEAM_FORMAT_RGBA8_SRGB) + " with a distance plane)"};
   std::unique_ptr<HostDepthInput> in(new HostDepthInput());
   in->reader_ = std::move(r).value();
+  // The inverse of packRgba8Srgb's curve: code → display value y (the sRGB EOTF) → x = y/(1 − y)
+  // → L = x / 2^EV. y is capped at 0.999 (code 255 would be infinite luminance).
+  const double gain = std::exp2(-exposureEv);
+  for (std::size_t c = 0; c < in->srgbToLinear_.size(); ++c) {
+    const double s = static_cast<double>(c) / 255.0;
+    const double y = std::min(0.999, s <= 0.04045 ? s / 12.92 : std::pow((s + 0.055) / 1.055, 2.4));
+    in->srgbToLinear_[c] = static_cast<float>(y / (1.0 - y) * gain);
+  }
   return in;
 }
 
@@ -63,7 +77,8 @@ HostDepthStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) 
   // No heartbeat timeout: a host publishes depth frames when it renders, and one that pauses
   // (a stopped simulation, a lock-step host waiting) is stale, not gone. Gone is a closed
   // channel, a dead writer pid or a replaced segment (ShmReader::latest checks those).
-  switch (reader_->latest(m, bytes_, nullptr, std::numeric_limits<double>::infinity())) {
+  const bool colour = hasColour();
+  switch (reader_->latest(m, bytes_, colour ? &distance_ : nullptr, std::numeric_limits<double>::infinity())) {
     case ipc::ReadStatus::Ok: break;
     case ipc::ReadStatus::NoFrame: return HostDepthStatus::NoFrame;
     case ipc::ReadStatus::Busy: return HostDepthStatus::Busy;
@@ -77,7 +92,7 @@ HostDepthStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) 
   }
   // The evaluator takes distances as they come: a NaN or a negative one would poison the
   // subsampling's interpolation. One pass over the buffer (≈ 0.3 ms at 1280×720).
-  const auto* d = reinterpret_cast<const float*>(bytes_.data());
+  const auto* d = colour ? distance_.data() : reinterpret_cast<const float*>(bytes_.data());
   const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
   for (std::size_t i = 0; i < n; ++i) {
     if (!(d[i] >= 0.0f)) {
@@ -99,7 +114,29 @@ HostDepthStatus HostDepthInput::latest(HostView& view, SurfaceBuffers& surface) 
   view.fov_y_deg = static_cast<float>((fa.up + fa.down) * 180.0 / kPi);
   view.frustum_deg = m.frustum_deg;
   surface.resize(w, h);
-  std::fill(surface.rgb.begin(), surface.rgb.end(), 0.0f);
+  view.colour = colour;
+  if (reader_->format() == FOGBEAM_FORMAT_RGBA16F_LINEAR) {
+    const auto* px = reinterpret_cast<const std::uint16_t*>(bytes_.data());
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t c = 0; c < 3; ++c) {
+        const float v = halfToFloat(px[4 * i + c]);
+        if (!(v >= 0.0f && std::isfinite(v))) {
+          lastError_ = "frame " + std::to_string(m.frame) + ": host colour: pixel (" +
+                       std::to_string(i % static_cast<std::size_t>(w)) + ", " + std::to_string(i / static_cast<std::size_t>(w)) +
+                       ") channel " + std::to_string(c) + " = " + std::to_string(static_cast<double>(v)) +
+                       ": expected a finite luminance ≥ 0 cd/m²";
+          return HostDepthStatus::Refused;
+        }
+        surface.rgb[3 * i + c] = v;
+      }
+    }
+  } else if (reader_->format() == FOGBEAM_FORMAT_RGBA8_SRGB) {
+    const auto* px = reinterpret_cast<const std::uint8_t*>(bytes_.data());
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) surface.rgb[3 * i + c] = srgbToLinear_[px[4 * i + c]];
+  } else {
+    std::fill(surface.rgb.begin(), surface.rgb.end(), 0.0f);
+  }
   std::memcpy(surface.distance.data(), d, n * sizeof(float));
   lastError_.clear();
   return HostDepthStatus::Ok;
@@ -117,8 +154,14 @@ namespace {
 constexpr std::chrono::milliseconds kAttachRetry{250};
 }  // namespace
 
-HostDepthLink::HostDepthLink(std::string channel, int width, int height, std::string output)
-    : channel_(std::move(channel)), output_(std::move(output)), width_(width), height_(height) {}
+HostDepthLink::HostDepthLink(std::string channel, int width, int height, std::string output, bool needsColour,
+                             double exposureEv)
+    : channel_(std::move(channel)),
+      output_(std::move(output)),
+      width_(width),
+      height_(height),
+      needsColour_(needsColour),
+      exposureEv_(exposureEv) {}
 
 void HostDepthLink::drop(const char* why) {
   spdlog::warn("serve: channel {}: host depth {} {}: overlays go on with host frame {}; attaching again when it is back",
@@ -131,7 +174,7 @@ void HostDepthLink::drop(const char* why) {
 void HostDepthLink::tryAttach(Clock::time_point now) {
   if (in_ || now < nextAttach_) return;
   nextAttach_ = now + kAttachRetry;
-  auto in = HostDepthInput::attach(channel_);
+  auto in = HostDepthInput::attach(channel_, exposureEv_);
   if (!in) {
     if (!waitingLogged_) {
       spdlog::info("serve: channel {}: waiting for host depth channel {} ({})", output_, channel_, in.error().message);
@@ -139,14 +182,20 @@ void HostDepthLink::tryAttach(Clock::time_point now) {
     }
     return;
   }
-  if (static_cast<int>((*in)->width()) != width_ || static_cast<int>((*in)->height()) != height_) {
+  const bool wrongSize = static_cast<int>((*in)->width()) != width_ || static_cast<int>((*in)->height()) != height_;
+  if (wrongSize || (needsColour_ && !(*in)->hasColour())) {
     // Refused once per host generation: the same writer would be refused again every 250 ms.
     if ((*in)->generation() != sizeRefusedGeneration_) {
       sizeRefusedGeneration_ = (*in)->generation();
       ++counts_.refused;
-      spdlog::error("serve: channel {}: host depth channel {} is {}x{}, the channel {}x{}: not used (make [[channel]] "
-                    "width and height the host's)",
-                    output_, channel_, (*in)->width(), (*in)->height(), width_, height_);
+      if (wrongSize)
+        spdlog::error("serve: channel {}: host depth channel {} is {}x{}, the channel {}x{}: not used (make [[channel]] "
+                      "width and height the host's)",
+                      output_, channel_, (*in)->width(), (*in)->height(), width_, height_);
+      else
+        spdlog::error("serve: channel {}: host depth channel {} has no colour, and the channel composites: not used "
+                      "(publish with fogbeam_depth_create_colour, or make the channel rgba16f-overlay)",
+                      output_, channel_);
     }
     return;
   }

@@ -149,7 +149,7 @@ ScenarioVehicle parseVehicle(const Section& s, bool ego, const std::string& base
   }
   LightEvent initial;
   initial.t_s = -std::numeric_limits<double>::infinity();
-  initial.lights = lightsOf(s, "lights", ego ? (ipc::light::kLowBeam | ipc::light::kPosition) : 0u);
+  initial.lights = lightsOf(s, "lights", ego ? ipc::light::kInitialEgo : 0u);
   initial.bending_deg = static_cast<float>(s.number("bending_deg", config::Range{-45.0, 45.0}, 0.0));
   v.lights.push_back(initial);
   s.forEachEntry("event", [&](const toml::table& t, std::string label, std::size_t) {

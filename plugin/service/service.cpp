@@ -80,7 +80,8 @@ struct StatusBoard {
         << ", \"lost\": " << c.lost << ", \"attached\": " << c.attached << "}";
     }
     o << "]"
-      << ", \"udp\": {\"datagrams\": " << udp.datagrams << ", \"applied\": " << udp.applied << ", \"dropped\": {";
+      << ", \"udp\": {\"datagrams\": " << udp.datagrams << ", \"applied\": " << udp.applied
+      << ", \"traffic_refused\": " << udp.traffic_refused << ", \"dropped\": {";
     bool first = true;
     for (std::size_t r = 0; r < ipc::kDropReasonCount; ++r) {
       if (udp.dropped[r] == 0) continue;
@@ -439,7 +440,9 @@ Result<std::unique_ptr<Service>> Service::create(ServiceConfig config, const Ser
   for (std::size_t c = 0; c < cfg.channels.size(); ++c) {
     const ChannelConfig& ch = cfg.channels[c];
     if (ch.depth_from.empty()) continue;
-    m->hostLinks[c] = std::make_unique<HostDepthLink>(ch.depth_from, ch.width, ch.height, ch.name);
+    // A composite channel needs the host's colour (host·T + A); an overlay channel does not.
+    m->hostLinks[c] = std::make_unique<HostDepthLink>(ch.depth_from, ch.width, ch.height, ch.name,
+                                                      ch.format != "rgba16f-overlay", ch.exposure_ev);
     std::lock_guard lock(m->board.mutex);
     m->board.host_depth.emplace_back(ch.name, HostDepthCounts{});
   }

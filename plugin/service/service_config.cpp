@@ -424,10 +424,6 @@ Status validate(const ServiceConfig& c) {
       return Error{where + ": [[channel]] " + ch.name + ": exposure_ev applies to rgba8-srgb only"};
     }
     if (!ch.depth_from.empty()) {
-      // The host has the surfaces: what fogbeam adds is the overlay (RGB in-scattered, A = T).
-      if (ch.format != "rgba16f-overlay")
-        return Error{where + ": [[channel]] " + ch.name + ": depth_from = \"" + ch.depth_from +
-                     "\" needs format = \"rgba16f-overlay\" (the host has the surfaces), found \"" + ch.format + "\""};
       for (const ChannelConfig& other : c.channels)
         if (other.name == ch.depth_from)
           return Error{where + ": [[channel]] " + ch.name + ": depth_from = \"" + ch.depth_from +

@@ -79,6 +79,37 @@ TEST(ShmChannel, FrameAndMetadataRoundTrip) {
   EXPECT_EQ(d, dist);
 }
 
+// Layout version 2's fields (docs/shm.md): the frustum of an off-axis view and the host frame an
+// overlay answers; and a segment of another layout version is refused by name, both ways.
+TEST(ShmChannel, Version2FieldsRoundTripAndAnotherVersionIsRefused) {
+  const std::string ch = channelName("v2");
+  auto w = ShmWriter::create(opts(ch));
+  ASSERT_TRUE(w) << w.error().message;
+  FrameMeta out;
+  out.frame = 3;
+  out.frustum_deg = {10.0f, 50.0f, 20.0f, 18.5f};
+  out.host_frame = 1234567;
+  std::vector<std::byte> pixels(64 * 32 * 8);
+  (*w)->publish(out, pixels, std::vector<float>(64 * 32, 1.0f));
+  {
+    auto r = ShmReader::attach(ch);
+    ASSERT_TRUE(r) << r.error().message;
+    FrameMeta m;
+    std::vector<std::byte> px;
+    ASSERT_EQ((*r)->latest(m, px), ReadStatus::Ok);
+    EXPECT_EQ(m.frustum_deg, out.frustum_deg);
+    EXPECT_EQ(m.host_frame, 1234567u);
+  }
+  // A version-1 segment (a writer built before the change), as this reader sees it.
+  UniqueFd fd(::shm_open(("/fogbeam." + ch).c_str(), O_RDWR, 0));
+  ASSERT_TRUE(fd);
+  const std::uint16_t v1 = 1;
+  ASSERT_EQ(::pwrite(fd.get(), &v1, sizeof v1, FOGBEAM_HDR_VERSION), static_cast<ssize_t>(sizeof v1));
+  auto old = ShmReader::attach(ch);
+  ASSERT_FALSE(old);
+  EXPECT_NE(old.error().message.find("layout version 1, this reader knows 2"), std::string::npos) << old.error().message;
+}
+
 // `fogbeam view` polls latestTag() and copies only when it changed: it must change with every
 // publish, even when the frame number repeats (lock-step answers the host's frame numbers).
 TEST(ShmChannel, LatestTagChangesWithEveryPublish) {

@@ -2,6 +2,7 @@
 // them as a camera and a distance buffer.
 #include <fogbeam/fogbeam_host.h>
 #include <fogbeam/plugin/host_depth.hpp>
+#include <fogbeam/render/pixel_pack.hpp>
 
 #include <gtest/gtest.h>
 
@@ -114,6 +115,38 @@ TEST(HostDepth, ThePythonDepthWriterIsReadAsTheCSdksIs) {
   EXPECT_EQ(surf.distance[1], 2.0f);
   EXPECT_EQ(surf.distance[31], 8.0f);
   EXPECT_EQ(::pclose(p), 0);
+}
+
+TEST(HostDepth, AnRgba8HostColourRoundTripsThroughFogbeamsToneCurve) {
+  // Decoded at the channel's exposure and packed again by packRgba8Srgb at the same exposure,
+  // every code but 255 (capped) comes back: a fog-free composite shows the host's image as it was.
+  const std::string ch = "test-depth-rgba8-" + std::to_string(::getpid());
+  fogbeam_depth_writer* w = nullptr;
+  ASSERT_EQ(fogbeam_depth_create_colour(ch.c_str(), 64, 4, FOGBEAM_FORMAT_RGBA8_SRGB, &w), FOGBEAM_OK)
+      << fogbeam_last_error();
+  const double ev = 1.5;
+  auto in = HostDepthInput::attach(ch, ev);
+  ASSERT_TRUE(in) << in.error().message;
+  EXPECT_TRUE((*in)->hasColour());
+  std::vector<std::uint8_t> px(64 * 4 * 4);
+  for (std::size_t i = 0; i < 64 * 4; ++i)
+    for (std::size_t c = 0; c < 4; ++c) px[4 * i + c] = static_cast<std::uint8_t>((i + 85 * c) % 255);
+  std::vector<float> d(64 * 4, 7.0f);
+  fogbeam_camera cam{};
+  cam.frame = 1;
+  cam.fov_x_deg = 60.0f;
+  EXPECT_EQ(fogbeam_depth_publish(w, d.data(), &cam), FOGBEAM_ERROR);  // a colour channel takes both
+  ASSERT_EQ(fogbeam_depth_publish_colour(w, d.data(), px.data(), &cam), FOGBEAM_OK) << fogbeam_last_error();
+  HostView view;
+  SurfaceBuffers surf;
+  ASSERT_EQ((*in)->latest(view, surf), HostDepthStatus::Ok) << (*in)->lastError();
+  EXPECT_TRUE(view.colour);
+  EXPECT_EQ(surf.distance, d);
+  std::vector<std::uint8_t> back(px.size());
+  packRgba8Srgb(surf.rgb.data(), 64 * 4, ev, back.data());
+  for (std::size_t i = 0; i < 64 * 4; ++i)
+    for (std::size_t c = 0; c < 3; ++c) ASSERT_EQ(back[4 * i + c], px[4 * i + c]) << "pixel " << i << " channel " << c;
+  fogbeam_depth_destroy(w);
 }
 
 TEST(HostDepth, AFrameChannelIsNotADepthChannel) {

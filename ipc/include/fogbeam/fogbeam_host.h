@@ -79,6 +79,18 @@ int fogbeam_depth_create(const char* name, uint32_t width, uint32_t height, fogb
  * answers with an overlay whose fogbeam_frame_info.host_frame is camera->frame
  * (docs/service.md, "Host depth"). */
 int fogbeam_depth_publish(fogbeam_depth_writer* w, const float* distance_m, const fogbeam_camera* camera);
+/* The same with the host's colour in the same frame, for a fogbeam channel that composites
+ * host·T + A itself (docs/service.md, "Host depth"): `colour_format` FOGBEAM_FORMAT_RGBA16F_LINEAR
+ * (linear luminance in cd/m², A ignored) or FOGBEAM_FORMAT_RGBA8_SRGB (the image as displayed,
+ * A ignored; fogbeam decodes it through the inverse of its own tone curve at the channel's
+ * exposure_ev). The segment holds the colour as its pixels and the distances as its distance
+ * plane, so that both are one frame under one seqlock. */
+int fogbeam_depth_create_colour(const char* name, uint32_t width, uint32_t height, uint32_t colour_format,
+                                fogbeam_depth_writer** out);
+/* Publishes distances and colour (width·height pixels of the channel's colour format, row 0 at
+ * the top) of one view. FOGBEAM_ERROR on a depth-only writer or frame 0. */
+int fogbeam_depth_publish_colour(fogbeam_depth_writer* w, const float* distance_m, const void* colour,
+                                 const fogbeam_camera* camera);
 void fogbeam_depth_destroy(fogbeam_depth_writer* w);
 
 /* Attaches to channel `name` (the service config's channel name). FOGBEAM_OK or FOGBEAM_ERROR. */

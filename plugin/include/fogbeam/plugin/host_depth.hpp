@@ -9,6 +9,7 @@
 #pragma once
 
 #include <fogbeam/ipc/shm_channel.hpp>
+#include <fogbeam/ipc/shm_layout.h>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
@@ -33,6 +34,9 @@ struct HostView {
   float yaw_deg = 0.0f, pitch_deg = 0.0f, roll_deg = 0.0f;  ///< as published (echoed in the overlay)
   float fov_x_deg = 0.0f, fov_y_deg = 0.0f;                 ///< whole extent, deg
   std::array<float, 4> frustum_deg{0.0f, 0.0f, 0.0f, 0.0f};  ///< as published (all 0: centred)
+  /// The host published its colour too (fogbeam_depth_create_colour): SurfaceBuffers::rgb holds
+  /// it as linear luminance, cd/m²; else rgb is zero.
+  bool colour = false;
 };
 
 enum class HostDepthStatus {
@@ -45,8 +49,16 @@ enum class HostDepthStatus {
 
 class HostDepthInput {
  public:
-  /// Attaches to the host's channel; fails when it does not exist or is not a distance channel.
-  [[nodiscard]] static Result<std::unique_ptr<HostDepthInput>> attach(const std::string& channel);
+  /// Attaches to the host's channel; fails when it is not there or is neither a distance channel
+  /// (format 4) nor a colour channel (RGBA16F linear or RGBA8 sRGB) with a distance plane.
+  /// `exposureEv`: an RGBA8 sRGB host colour is decoded through the inverse of fogbeam's own
+  /// tone curve at this exposure (packRgba8Srgb: y = x/(1 + x) of x = L·2^EV, sRGB-encoded), so
+  /// that a host image passed through a fog-free frame comes back as it was (up to 8-bit steps;
+  /// code 255 reads as y = 0.999).
+  [[nodiscard]] static Result<std::unique_ptr<HostDepthInput>> attach(const std::string& channel,
+                                                                      double exposureEv = 0.0);
+  /// The host publishes its colour with its distances.
+  [[nodiscard]] bool hasColour() const noexcept { return reader_->format() != FOGBEAM_FORMAT_DISTANCE_F32; }
 
   /// Reads the newest view into `view` and `surface` (distance filled, rgb zero: the host has
   /// the surfaces). Refused (message in lastError(), `view` and `surface` untouched): a field
@@ -65,6 +77,8 @@ class HostDepthInput {
   HostDepthInput() = default;
   std::unique_ptr<ipc::ShmReader> reader_;
   std::vector<std::byte> bytes_;
+  std::vector<float> distance_;
+  std::array<float, 256> srgbToLinear_{};  ///< RGBA8 host colour: code → cd/m² (attach())
   std::string lastError_;
 };
 
@@ -95,8 +109,11 @@ class HostDepthLink {
   using Clock = std::chrono::steady_clock;
 
   /// `channel`: the host's depth channel; `width` × `height`: the output channel's size, which
-  /// the host's must equal; `output`: the output channel's name (for the log).
-  HostDepthLink(std::string channel, int width, int height, std::string output);
+  /// the host's must equal; `output`: the output channel's name (for the log). `needsColour`:
+  /// the output channel composites (host·T + A), so a depth-only host channel is refused;
+  /// `exposureEv`: its exposure (HostDepthInput::attach).
+  HostDepthLink(std::string channel, int width, int height, std::string output, bool needsColour = false,
+                double exposureEv = 0.0);
 
   /// Once per frame: attaches if needed, reads the newest host view into view() and
   /// surface(). False while no host view has been read yet (nothing to render).
@@ -115,6 +132,8 @@ class HostDepthLink {
   void drop(const char* why);
   std::string channel_, output_;
   int width_, height_;
+  bool needsColour_;
+  double exposureEv_;
   std::unique_ptr<HostDepthInput> in_;
   HostView view_, scratchView_;
   SurfaceBuffers surface_, scratch_;

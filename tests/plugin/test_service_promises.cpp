@@ -1,0 +1,150 @@
+// What docs/service.md promises about the frame loop and the status reply, checked on a running
+// Service (issue 16, part 2): a lock-step request for frame 0 is refused; the status names the
+// source of the newest input (not "scenario" once a host has taken over) and shows the CAN speed.
+#include <fogbeam/ipc/protocol.hpp>
+#include <fogbeam/ipc/shm_channel.hpp>
+#include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/plugin/service.hpp>
+#include <fogbeam/plugin/service_config.hpp>
+
+#include <gtest/gtest.h>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <regex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace fogbeam::plugin {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+const std::string kData = FOGBEAM_TEST_DATA_DIR;
+
+void holdTheTestFogsTables() {
+  static const Result<AirlightEvaluator> held = [] {
+    Medium fog;
+    fog.extinction_per_m = extinctionFromVisibility(80.0);
+    fog.phase = makeHenyeyGreenstein(0.85).value();
+    Lamp lamp;
+    lamp.profile = makeProfile(IsotropicProfile{1.0}).value();
+    return AirlightEvaluator::build(lamp, fog, AirlightMethod::Accurate);
+  }();
+  ASSERT_TRUE(held) << held.error().message;
+}
+
+ServiceConfig configOf(std::vector<std::string> settings) {
+  holdTheTestFogsTables();
+  static std::atomic<int> calls{0};
+  settings.insert(settings.begin(), "render.view_table_step_deg=4.0");
+  auto c = loadServiceConfig(kData + "/service/small.toml", settings);
+  EXPECT_TRUE(c) << (c ? "" : c.error().message);
+  if (!c) return {};
+  for (ChannelConfig& ch : c->channels)
+    ch.name = "test-prom-" + std::to_string(::getpid()) + "-" + std::to_string(calls++) + "-" + ch.name;
+  return std::move(c).value();
+}
+
+bool waitFor(const std::function<bool()>& done, std::chrono::milliseconds timeout) {
+  const auto end = Clock::now() + timeout;
+  while (Clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(2ms);
+  }
+  return done();
+}
+
+class Running {
+ public:
+  explicit Running(Service& s) : s_(s) {
+    thread_ = std::thread([this] { result_ = s_.run(); });
+  }
+  ~Running() { (void)finish(); }
+  Running(const Running&) = delete;
+  Running& operator=(const Running&) = delete;
+  Status finish() {
+    if (thread_.joinable()) {
+      s_.stop();
+      thread_.join();
+    }
+    return result_;
+  }
+
+ private:
+  Service& s_;
+  std::thread thread_;
+  Status result_ = Ok{};
+};
+
+void sendTo(std::uint16_t port, ipc::Payload p, std::uint32_t seq) {
+  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(port);
+  ::inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+  ipc::Message m;
+  m.header.sequence = seq;
+  m.payload = std::move(p);
+  const auto bytes = ipc::encode(m);
+  EXPECT_EQ(::sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to),
+            static_cast<ssize_t>(bytes.size()));
+  ::close(fd);
+}
+
+std::string field(const std::string& json, const std::string& name) {
+  std::smatch m;
+  if (!std::regex_search(json, m, std::regex("\"" + name + "\": (\"[^\"]*\"|[-0-9.a-z]+)"))) return "";
+  return m[1].str();
+}
+
+TEST(ServicePromises, LockStepRefusesAFrameRequestForFrameZero) {
+  auto created = Service::create(configOf({"timing.mode=\"lock-step\"", "status.interval_s=0.1"}));
+  ASSERT_TRUE(created) << created.error().message;
+  Service& service = **created;
+  Running loop(service);
+  // The loop sees the newest request only: the next one after the first has been looked at.
+  sendTo(service.udpPort(), ipc::FrameRequest{0}, 1);
+  std::this_thread::sleep_for(300ms);
+  sendTo(service.udpPort(), ipc::FrameRequest{5}, 2);
+  ASSERT_TRUE(waitFor([&] { return service.frames() == 1; }, 120'000ms));
+  auto r = ipc::ShmReader::attach(service.config().channels[0].name);
+  ASSERT_TRUE(r);
+  ipc::FrameMeta m;
+  std::vector<std::byte> px;
+  ASSERT_EQ((*r)->latest(m, px), ipc::ReadStatus::Ok);
+  EXPECT_EQ(m.frame, 5u);  // frame 0 was never published
+  EXPECT_TRUE(waitFor([&] { return field(service.statusJson(), "frame_requests_refused") == "1"; }, 5000ms))
+      << service.statusJson();
+  EXPECT_TRUE(loop.finish());
+}
+
+TEST(ServicePromises, StatusNamesTheNewestInputsSourceAndTheCanSpeed) {
+  // A scenario plays until the candump replay's first mapped frame; the replay starts with the
+  // first frame published. Afterwards `input` names the replay (its lamp and speed updates are
+  // newer than the scenario's last ego pose) and the speed is in the status.
+  auto created = Service::create(configOf({"world.scenario=\"" + kData + "/scenarios/timing.toml\"",
+                                           "input.can.source=\"candump\"", "input.can.candump=\"" + kData + "/can/drive.log\"",
+                                           "input.can.mapping=\"" + kData + "/can/mapping.toml\"",
+                                           "input.can.candump_speed=100.0", "status.interval_s=0.1", "timing.rate_hz=30"}));
+  ASSERT_TRUE(created) << created.error().message;
+  Service& service = **created;
+  Running loop(service);
+  EXPECT_TRUE(waitFor([&] { return field(service.statusJson(), "input").rfind("\"candump", 0) == 0; }, 120'000ms))
+      << service.statusJson();
+  const std::string speed = field(service.statusJson(), "vehicle_speed_m_s");
+  ASSERT_FALSE(speed.empty() || speed == "null") << service.statusJson();
+  EXPECT_GE(std::stod(speed), 0.0);
+  EXPECT_TRUE(loop.finish());
+}
+
+}  // namespace
+}  // namespace fogbeam::plugin
