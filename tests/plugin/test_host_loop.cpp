@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include "service_test_support.hpp"
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -33,34 +35,15 @@
 namespace fogbeam::plugin {
 namespace {
 
+using test::holdTheTestFogsTables;
+using test::Running;
+using test::waitFor;
+
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
 const std::string kSmall = std::string(FOGBEAM_TEST_DATA_DIR) + "/service/small.toml";
 constexpr auto kFirstFrame = 120'000ms;  // the first frame may build tables (more under sanitizers)
-
-/// The test fog's G-moment table held for the whole binary (as test_service.cpp does): what is
-/// tested here is the loop, not the table's build time.
-void holdTheTestFogsTables() {
-  static const Result<AirlightEvaluator> held = [] {
-    Medium fog;
-    fog.extinction_per_m = extinctionFromVisibility(80.0);
-    fog.phase = makeHenyeyGreenstein(0.85).value();
-    Lamp lamp;
-    lamp.profile = makeProfile(IsotropicProfile{1.0}).value();
-    return AirlightEvaluator::build(lamp, fog, AirlightMethod::Accurate);
-  }();
-  ASSERT_TRUE(held) << held.error().message;
-}
-
-bool waitFor(const std::function<bool()>& done, std::chrono::milliseconds timeout) {
-  const auto end = Clock::now() + timeout;
-  while (Clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(1ms);
-  }
-  return done();
-}
 
 /// small.toml (one 160×90 overlay channel "own", fogbeam's own view) plus a channel "host" of
 /// the same view fed by host depth channel `depth`; unique names per process and call.
@@ -91,28 +74,6 @@ LoopConfig loopConfig(const std::vector<std::string>& settings) {
   lc.config = std::move(c).value();
   return lc;
 }
-
-class Running {
- public:
-  explicit Running(Service& s) : s_(s) {
-    thread_ = std::thread([this] { result_ = s_.run(); });
-  }
-  ~Running() { (void)finish(); }
-  Running(const Running&) = delete;
-  Running& operator=(const Running&) = delete;
-  Status finish() {
-    if (thread_.joinable()) {
-      s_.stop();
-      thread_.join();
-    }
-    return result_;
-  }
-
- private:
-  Service& s_;
-  std::thread thread_;
-  Status result_ = Ok{};
-};
 
 /// A host stand-in: the road plane z = 0 seen from `camera`, distances along each pixel's ray
 /// computed from the camera model (Camera::rayDirection), +inf above the horizon.
@@ -198,31 +159,6 @@ Agreement agreement(const Overlay& a, const Overlay& b) {
   return r;
 }
 
-class UdpSender {
- public:
-  explicit UdpSender(std::uint16_t port) : fd_(::socket(AF_INET, SOCK_DGRAM, 0)) {
-    to_.sin_family = AF_INET;
-    to_.sin_port = htons(port);
-    ::inet_pton(AF_INET, "127.0.0.1", &to_.sin_addr);
-  }
-  ~UdpSender() { ::close(fd_); }
-  UdpSender(const UdpSender&) = delete;
-  UdpSender& operator=(const UdpSender&) = delete;
-  void send(ipc::Payload p) {
-    ipc::Message m;
-    m.header.sequence = seq_++;
-    m.payload = std::move(p);
-    const auto bytes = ipc::encode(m);
-    ASSERT_EQ(::sendto(fd_, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_),
-              static_cast<ssize_t>(bytes.size()));
-  }
-
- private:
-  int fd_;
-  sockaddr_in to_{};
-  std::uint32_t seq_ = 1;
-};
-
 struct DepthWriter {
   fogbeam_depth_writer* w = nullptr;
   DepthWriter(const std::string& name, int width, int height) {
@@ -280,7 +216,7 @@ TEST(HostLoop, AHostWhoseDepthLagsItsStateByAFrameGetsTheOverlayOfItsDepthsView)
   ASSERT_TRUE(created) << created.error().message;
   Service& service = **created;
   Running loop(service);
-  UdpSender state(service.udpPort());
+  test::LoopbackSender state(service.udpPort());
   const Camera cam = ownCamera(service.config(), Vec3(10.0, 0.0, 0.0));
   const std::vector<float> depth = planeDepth(cam);
   DepthWriter host(lc.depth, cam.width, cam.height);

@@ -13,6 +13,8 @@
 
 #include <gtest/gtest.h>
 
+#include "service_test_support.hpp"
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -34,6 +36,10 @@
 namespace fogbeam::plugin {
 namespace {
 
+using test::holdTheTestFogsTables;
+using test::Running;
+using test::waitFor;
+
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
@@ -41,23 +47,6 @@ using namespace std::chrono_literals;
 const std::string kSmall = std::string(FOGBEAM_TEST_DATA_DIR) + "/service/small.toml";
 const std::string kTiming = std::string(FOGBEAM_TEST_DATA_DIR) + "/service/timing.toml";
 const std::string kScenario = std::string(FOGBEAM_TEST_DATA_DIR) + "/scenarios/timing.toml";
-
-/// The accurate method's G-moment table for the test configs' fog (Henyey–Greenstein g = 0.85;
-/// both small.toml and timing.toml) takes about a second to build here and ten times that under
-/// ThreadSanitizer, and AirlightEvaluator's cache keeps a table only while an evaluator holds it.
-/// Holding one for the whole binary lets every Service of these tests reuse it, as a running
-/// service reuses its own from frame to frame; what is tested here is the Service, not the table.
-void holdTheTestFogsTables() {
-  static const Result<AirlightEvaluator> held = [] {
-    Medium fog;
-    fog.extinction_per_m = extinctionFromVisibility(80.0);
-    fog.phase = makeHenyeyGreenstein(0.85).value();
-    Lamp lamp;
-    lamp.profile = makeProfile(IsotropicProfile{1.0}).value();
-    return AirlightEvaluator::build(lamp, fog, AirlightMethod::Accurate);
-  }();
-  ASSERT_TRUE(held) << held.error().message;
-}
 
 /// `file` with `settings`, its channels renamed to unique ones (this process, this call), so
 /// that tests neither meet each other's segments nor a running service's.
@@ -115,15 +104,6 @@ class UdpSender {
   std::uint32_t seq_ = 1;
 };
 
-bool waitFor(const std::function<bool()>& done, std::chrono::milliseconds timeout) {
-  const auto end = Clock::now() + timeout;
-  while (Clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(1ms);
-  }
-  return done();
-}
-
 /// The first frame builds the fog tables (seconds; more under sanitizers).
 constexpr auto kFirstFrame = 120'000ms;
 
@@ -133,30 +113,6 @@ std::size_t threadCount() {
   for ([[maybe_unused]] const auto& e : fs::directory_iterator("/proc/self/task")) ++n;
   return n;
 }
-
-/// A service's frame loop on a thread of its own; stops the service and joins on destruction.
-class Running {
- public:
-  explicit Running(Service& s, RunLimits limits = {}) : s_(s) {
-    thread_ = std::thread([this, limits] { result_ = s_.run(limits); });
-  }
-  ~Running() { (void)finish(); }  // a test that returned early: its failure is reported already
-  Running(const Running&) = delete;
-  Running& operator=(const Running&) = delete;
-  /// stop(), then the loop's thread joined; run()'s result.
-  Status finish() {
-    if (thread_.joinable()) {
-      s_.stop();
-      thread_.join();
-    }
-    return result_;
-  }
-
- private:
-  Service& s_;
-  std::thread thread_;
-  Status result_ = Ok{};
-};
 
 /// The newest frame of `channel` when its number is `frame` (else nullopt), polled.
 struct ShmFrame {

@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "service_test_support.hpp"
+
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -25,22 +27,14 @@
 namespace fogbeam::plugin {
 namespace {
 
+using test::holdTheTestFogsTables;
+using test::Running;
+using test::waitFor;
+
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
 const std::string kData = FOGBEAM_TEST_DATA_DIR;
-
-void holdTheTestFogsTables() {
-  static const Result<AirlightEvaluator> held = [] {
-    Medium fog;
-    fog.extinction_per_m = extinctionFromVisibility(80.0);
-    fog.phase = makeHenyeyGreenstein(0.85).value();
-    Lamp lamp;
-    lamp.profile = makeProfile(IsotropicProfile{1.0}).value();
-    return AirlightEvaluator::build(lamp, fog, AirlightMethod::Accurate);
-  }();
-  ASSERT_TRUE(held) << held.error().message;
-}
 
 ServiceConfig configOf(std::vector<std::string> settings) {
   holdTheTestFogsTables();
@@ -52,52 +46,6 @@ ServiceConfig configOf(std::vector<std::string> settings) {
   for (ChannelConfig& ch : c->channels)
     ch.name = "test-prom-" + std::to_string(::getpid()) + "-" + std::to_string(calls++) + "-" + ch.name;
   return std::move(c).value();
-}
-
-bool waitFor(const std::function<bool()>& done, std::chrono::milliseconds timeout) {
-  const auto end = Clock::now() + timeout;
-  while (Clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(2ms);
-  }
-  return done();
-}
-
-class Running {
- public:
-  explicit Running(Service& s) : s_(s) {
-    thread_ = std::thread([this] { result_ = s_.run(); });
-  }
-  ~Running() { (void)finish(); }
-  Running(const Running&) = delete;
-  Running& operator=(const Running&) = delete;
-  Status finish() {
-    if (thread_.joinable()) {
-      s_.stop();
-      thread_.join();
-    }
-    return result_;
-  }
-
- private:
-  Service& s_;
-  std::thread thread_;
-  Status result_ = Ok{};
-};
-
-void sendTo(std::uint16_t port, ipc::Payload p, std::uint32_t seq) {
-  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in to{};
-  to.sin_family = AF_INET;
-  to.sin_port = htons(port);
-  ::inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
-  ipc::Message m;
-  m.header.sequence = seq;
-  m.payload = std::move(p);
-  const auto bytes = ipc::encode(m);
-  EXPECT_EQ(::sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to),
-            static_cast<ssize_t>(bytes.size()));
-  ::close(fd);
 }
 
 std::string field(const std::string& json, const std::string& name) {
@@ -112,9 +60,10 @@ TEST(ServicePromises, LockStepRefusesAFrameRequestForFrameZero) {
   Service& service = **created;
   Running loop(service);
   // The loop sees the newest request only: the next one after the first has been looked at.
-  sendTo(service.udpPort(), ipc::FrameRequest{0}, 1);
+  test::LoopbackSender host(service.udpPort());
+  host.send(ipc::FrameRequest{0});
   std::this_thread::sleep_for(300ms);
-  sendTo(service.udpPort(), ipc::FrameRequest{5}, 2);
+  host.send(ipc::FrameRequest{5});
   ASSERT_TRUE(waitFor([&] { return service.frames() == 1; }, 120'000ms));
   auto r = ipc::ShmReader::attach(service.config().channels[0].name);
   ASSERT_TRUE(r);
