@@ -309,6 +309,7 @@ struct Service::Impl {
   std::vector<std::unique_ptr<HostDepthLink>> hostLinks;
   std::vector<HostFrame> hostFrames;
   std::vector<const HostFrame*> hostPtrs;
+  bool hostPaced = false;  ///< a channel has depth_from: lock-step runs on the host's depth frames
   std::uint64_t frameRequestsRefused = 0;
   Clock::time_point lastRefusedRequestLog{};
   std::vector<std::unique_ptr<ipc::ShmWriter>> writers;
@@ -461,8 +462,8 @@ Result<std::unique_ptr<Service>> Service::create(ServiceConfig config, const Ser
       spdlog::info("serve: channel /fogbeam.{} {}x{} {} fov {}°", ch.name, ch.width, ch.height, ch.format, ch.fov_x_deg);
     }
   }
-  const bool hostPaced = std::any_of(cfg.channels.begin(), cfg.channels.end(),
-                                     [](const ChannelConfig& ch) { return !ch.depth_from.empty(); });
+  m->hostPaced = std::any_of(m->hostLinks.begin(), m->hostLinks.end(), [](const auto& l) { return l != nullptr; });
+  const bool hostPaced = m->hostPaced;
   spdlog::info("serve: world {}, {}, UDP {}:{}, status port {}", m->worldPath,
                cfg.lock_step ? (hostPaced ? std::string("lock-step on the host's depth frames")
                                           : std::string("lock-step on frame requests"))
@@ -533,7 +534,7 @@ Status Service::run(const RunLimits& limits) {
   std::uint64_t windowFrames = 0, framesThisRun = 0;
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / cfg.rate_hz));
   std::optional<Error> failure;
-  const bool hostPaced = std::any_of(m.hostLinks.begin(), m.hostLinks.end(), [](const auto& l) { return l != nullptr; });
+  const bool hostPaced = m.hostPaced;
   while (!m.stopRequested.load() && !failure) {
     if (limits.duration_s > 0.0 && Clock::now() - start > std::chrono::duration<double>(limits.duration_s)) break;
     if (limits.frames > 0 && framesThisRun >= limits.frames) break;
