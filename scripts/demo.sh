@@ -13,7 +13,7 @@ cmake --build --preset release -j "$(nproc)"
 mkdir -p out
 ./build/release/plugin/fogbeam validate --vectors tests/data/airlight_vectors.csv --out out/validate.csv
 ./build/release/plugin/fogbeam replay --scenario config/scenarios/oncoming_high_low.toml --out out/oncoming \
-  --fps 2 --no-exr --exposure -1
+  --fps 2 --no-exr
 ./build/release/plugin/fogbeam serve --duration 30 --channel-prefix demo- --udp-port 0 --status-port 0 &
 serve=$!
 trap 'kill $serve 2>/dev/null || true' EXIT

@@ -10,6 +10,8 @@
 // relative even at grazing incidence near the horizon. Outputs:
 //   location 0: L_s = L(S) e^{−K_t t} + I_a (1 − e^{−K_t t})  [cd/m², rgb; a = 1]
 //   location 1: t, the true distance along the ray [m]
+// With FOGBEAM_GBUFFER defined (shading on the CPU, docs/surface_pass.md) location 0 holds the
+// normal facing the eye and ρ red instead, location 2 ρ green and blue; nothing is lit here.
 // Pixels where no plane is hit are discarded (they keep the sky clear values: I_a and +inf).
 #include "common_photometry.glsl"
 
@@ -23,8 +25,11 @@ uniform int uPlaneCount;
 uniform dmat3 uWorldFromCamera;  // columns: camera +x (view axis), +y (left), +z (up)
 uniform dvec3 uFocalPrincipal;   // (f, cx, H − cy) [px]: principal point in window coordinates (y up)
 
-layout(location = 0) out vec4 outLuminance;
+layout(location = 0) out vec4 outLuminance;  // FOGBEAM_GBUFFER: (n, ρ red)
 layout(location = 1) out float outDistance;
+#ifdef FOGBEAM_GBUFFER
+layout(location = 2) out vec2 outRhoGB;       // ρ green, blue
+#endif
 
 void main() {
   dvec3 local = dvec3(uFocalPrincipal.x, uFocalPrincipal.y - double(gl_FragCoord.x), double(gl_FragCoord.y) - uFocalPrincipal.z);
@@ -45,9 +50,16 @@ void main() {
   vec3 dir = vec3(d);
   if (dot(n, dir) > 0.0) n = -n;  // the side facing the eye
   float t = float(best);
+#ifdef FOGBEAM_GBUFFER
+  // Deferred: the CPU lights the pixel (render/surface_shading.hpp) from its normal, ρ and t.
+  float rho = float(planes[hit].reflectance.x);
+  outLuminance = vec4(n, rho);
+  outRhoGB = vec2(rho, rho);
+#else
   vec3 p = vec3(best * d);
   vec3 ls = surfaceLuminance(p, n, vec3(float(planes[hit].reflectance.x)));
   outLuminance = vec4(viewedThroughFog(ls, t), 1.0);
+#endif
   outDistance = t;
   gl_FragDepth = depthFromDistance(t);
 }

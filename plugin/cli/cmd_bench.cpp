@@ -18,9 +18,11 @@
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 #include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/pixel_pack.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/render/raymarch.hpp>
 #include <fogbeam/render/surface.hpp>
+#include <fogbeam/render/surface_shading.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
@@ -207,13 +209,29 @@ struct SizeRun {
   FrameLayers layers;      // the last composite
 };
 
-// Surface pass: CPU planes (the analytic null renderer). Its buffers feed the airlight stages
-// unless the GL pass works.
+// Surface pass: CPU planes (the analytic null renderer), rows over the bench's pool. Its
+// buffers feed the airlight stages unless the GL pass works.
 json surfaceCpuStage(SizeRun& run) {
   StageStats stats;
   for (int f = 0; f < run.o.frames; ++f) {
     const auto t0 = Clock::now();
-    renderSurfacesCpu(run.scene, run.surface);
+    renderSurfacesCpu(run.scene, run.surface, &run.pool);
+    stats.ms.push_back(msSince(t0));
+  }
+  return stats.toJson();
+}
+
+// The CPU surface pass the service and `render --surface cpu` run without GL: SurfaceShader's
+// SIMD path (planes and the bonnet cast in double, lit in float). The stage above is its
+// double-precision oracle.
+json surfaceCpuFastStage(SizeRun& run) {
+  StageStats stats;
+  SurfaceShader shader;
+  kernels::ShadeFrame frame;
+  SurfaceBuffers out;
+  for (int f = 0; f < run.o.frames; ++f) {
+    const auto t0 = Clock::now();
+    shader.render(run.scene, frame, out, &run.pool);
     stats.ms.push_back(msSince(t0));
   }
   return stats.toJson();
@@ -224,7 +242,7 @@ json surfaceCpuStage(SizeRun& run) {
 // stages below use its buffers, as `fogbeam render` does.
 json surfaceGlStage(SizeRun& run) {
   if (!run.gl) return {{"available", false}, {"note", "GL: not available (no EGL)"}};
-  StageStats total, draw, readback;
+  StageStats total, draw, readback, shade;
   SurfaceBuffers glBuffers;
   for (int f = 0; f < run.o.frames; ++f) {
     const auto t0 = Clock::now();
@@ -233,10 +251,12 @@ json surfaceGlStage(SizeRun& run) {
     total.ms.push_back(msSince(t0));
     draw.ms.push_back(run.gl->stats().surface_ms);
     readback.ms.push_back(run.gl->stats().readback_ms);
+    shade.ms.push_back(run.gl->stats().shade_ms);
   }
   run.surface = std::move(glBuffers);
   return {{"available", true}, {"note", run.gl->description()}, {"total", total.toJson()},
-          {"draw", draw.toJson()}, {"readback", readback.toJson()}};
+          {"draw", draw.toJson()}, {"readback", readback.toJson()}, {"shade", shade.toJson()},
+          {"shading", run.gl->shading() == SurfaceShading::Cpu ? "cpu" : "gpu"}};
 }
 
 // Airlight, accurate method, first frame at this size: it builds the view tables of the
@@ -342,15 +362,33 @@ json kernelsByTargetStage(SizeRun& run) {
   return simd;
 }
 
-// Composite of the surfaces and the subsampled airlight.
+// Composite of the surfaces and the subsampled airlight, over the bench's pool.
 json compositeStage(SizeRun& run) {
   StageStats stats;
   for (int f = 0; f < run.o.frames; ++f) {
     const auto t0 = Clock::now();
-    compositeFrame(run.scene.fog, run.surface, run.sub, run.layers);
+    compositeFrame(run.scene.fog, run.surface, run.sub, run.layers, {}, &run.pool);
     stats.ms.push_back(msSince(t0));
   }
   return stats.toJson();
+}
+
+// Packing the composite into the shared-memory formats a channel publishes (docs/shm.md): RGBA8
+// sRGB (tone-mapped) and the RGBA16F overlay (in-scattered light + transmittance); the larger
+// of the two is what a channel pays per frame.
+json packStage(SizeRun& run) {
+  StageStats rgba8, overlay;
+  std::vector<std::uint8_t> bytes(4 * run.nPixels);
+  std::vector<std::uint16_t> halves(4 * run.nPixels);
+  for (int f = 0; f < run.o.frames; ++f) {
+    auto t0 = Clock::now();
+    packRgba8Srgb(run.layers.composite.data(), run.nPixels, 0.0, bytes.data());
+    rgba8.ms.push_back(msSince(t0));
+    t0 = Clock::now();
+    packRgba16F(run.layers.overlay.data(), run.layers.transmittance.data(), 1.0f, run.nPixels, halves.data());
+    overlay.ms.push_back(msSince(t0));
+  }
+  return {{"rgba8_srgb", rgba8.toJson()}, {"rgba16f_overlay", overlay.toJson()}};
 }
 
 // Glow and glare (issue 7) on the same frame: their layers' time, and their effect as the
@@ -514,6 +552,7 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
 
   json& stages = r["stages"];
   stages["surface_cpu_planes"] = surfaceCpuStage(run);
+  stages["surface_cpu_fast"] = surfaceCpuFastStage(run);
   stages["surface_gl"] = surfaceGlStage(run);
   stages["airlight_first_frame"] = airlightFirstFrameStage(run);
   stages["airlight_subsampled"] = airlightSubsampledStage(run);
@@ -521,17 +560,27 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   stages["airlight_kernels_by_target"] = kernelsByTargetStage(run);
   stages["composite"] = compositeStage(run);
   r["glow_glare"] = glowGlareStage(run);
+  stages["pack"] = packStage(run);
 
   // The frame as `fogbeam render` runs it: the surfaces the airlight stages read (GL when it
   // works), the subsampled airlight, the composite.
   const bool glUsed = stages["surface_gl"]["available"].get<bool>();
   const double surfaceMs = glUsed ? stages["surface_gl"]["total"]["median_ms"].get<double>()
-                                  : stages["surface_cpu_planes"]["median_ms"].get<double>();
+                                  : stages["surface_cpu_fast"]["median_ms"].get<double>();
   const double pipelineMs = surfaceMs + stages["airlight_subsampled"]["median_ms"].get<double>() +
                             stages["composite"]["median_ms"].get<double>();
   r["pipeline_subsampled_ms"] = pipelineMs;
   r["pipeline_surface"] = glUsed ? "surface GL" : "surface CPU";
   r["fps_subsampled"] = pipelineMs > 0.0 ? 1e3 / pipelineMs : 0.0;
+  // The whole frame (issue 17): the pipeline above plus glow, glare and packing into the slower
+  // of the two shm formats — every stage a channel with glow and glare on runs per frame, one
+  // after the other (medians).
+  const json& gg = r["glow_glare"];
+  const double effectsMs = gg.contains("glow") ? gg["glow"]["median_ms"].get<double>() + gg["glare"]["median_ms"].get<double>() : 0.0;
+  const double packMs = std::max(stages["pack"]["rgba8_srgb"]["median_ms"].get<double>(),
+                                 stages["pack"]["rgba16f_overlay"]["median_ms"].get<double>());
+  r["whole_frame_ms"] = pipelineMs + effectsMs + packMs;
+  r["whole_frame_fps"] = 1e3 / (pipelineMs + effectsMs + packMs);
 
   r["accuracy"] = accuracyStage(run, stages["airlight_full"]["median_ms"].get<double>());
   return r;
@@ -568,11 +617,14 @@ void printSize(const json& r) {
   const double n = r["pixels"].get<double>();
   const json& s = r["stages"];
   std::printf("\n%d x %d (%.0f pixels)       median       [min – max]\n", w, h, n);
-  printStage("surface (CPU planes)", s["surface_cpu_planes"]);
+  printStage("surface CPU (SIMD, no GL)", s["surface_cpu_fast"], "  planes + bonnet: the fallback");
+  printStage("surface CPU planes (double)", s["surface_cpu_planes"], "  the oracle");
   if (s["surface_gl"]["available"].get<bool>()) {
     printStage("surface GL: render() total", s["surface_gl"]["total"]);
     printStage("  of which GPU draw", s["surface_gl"]["draw"]);
     printStage("  of which readback", s["surface_gl"]["readback"]);
+    if (s["surface_gl"].value("shading", "") == "cpu")
+      printStage("    of which CPU shading", s["surface_gl"]["shade"], "  (SIMD, the pass's geometry buffer)");
   } else {
     std::printf("  %-30s %s\n", "surface (GL)", s["surface_gl"]["note"].get<std::string>().c_str());
   }
@@ -594,9 +646,13 @@ void printSize(const json& r) {
   std::printf("\n");
   printStage("composite", s["composite"]);
   printEffects(r["glow_glare"]);
+  printStage("pack RGBA8 sRGB", s["pack"]["rgba8_srgb"]);
+  printStage("pack RGBA16F overlay", s["pack"]["rgba16f_overlay"]);
   std::printf("  %-30s %9.2f ms  = %.1f frames/s (%s + airlight subsampled + composite)\n", "pipeline, subsampled",
               r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>(),
               r["pipeline_surface"].get<std::string>().c_str());
+  std::printf("  %-30s %9.2f ms  = %.1f frames/s (+ glow + glare + packing, one after the other)\n", "whole frame",
+              r["whole_frame_ms"].get<double>(), r["whole_frame_fps"].get<double>());
 
   const json& a = r["accuracy"];
   std::printf("  error vs reference on %d random pixels (seed %u), counted where reference > %.0e cd/m2:\n",

@@ -5,9 +5,12 @@
 
 #include <fogbeam/gl/surface_pass.hpp>
 #include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/exposure.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/render/surface.hpp>
+#include <fogbeam/render/surface_shading.hpp>
+#include <fogbeam/util/thread_pool.hpp>
 #include <fogbeam/scene/scene.hpp>
 
 #include <chrono>
@@ -143,7 +146,10 @@ int runRender(const RenderOptions& o) {
     if (scene->gltf_path)
       std::fprintf(stderr, "fogbeam render: note: the CPU surface pass draws planes only; glTF '%s' is not drawn\n",
                    scene->gltf_path->c_str());
-    renderSurfacesCpu(*scene, surface);
+    SurfaceShader shader;  // planes and the bonnet, SIMD (renderSurfacesCpu is its double-precision oracle)
+    kernels::ShadeFrame frame;
+    ThreadPool pool(o.threads);
+    shader.render(*scene, frame, surface, &pool);
   }
   surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
@@ -194,8 +200,10 @@ int runRender(const RenderOptions& o) {
     std::fprintf(stderr, "fogbeam render: %s\n", s.error().message.c_str());
     return 1;
   }
+  // The PNG's exposure: --exposure EV, or the frame's automatic night exposure (exposure.hpp).
+  const double exposureEv = o.exposure ? *o.exposure : autoExposureEv(layers.composite, layers.width, layers.height);
   if (!o.png.empty()) {
-    const auto bytes = toneMapSrgb8(layers.composite, o.exposure);
+    const auto bytes = toneMapSrgb8(layers.composite, exposureEv);
     png::RgbImage img(layers.width, layers.height);
     for (int j = 0; j < layers.height; ++j)
       for (int i = 0; i < layers.width; ++i) {
@@ -234,8 +242,8 @@ int runRender(const RenderOptions& o) {
                 fx.glare.enabled ? "CIE 146 veiling luminance" : "off");
     printEffects(effects, fx.glow.enabled, fx.glare.enabled);
   }
-  std::printf("  wrote %s%s%s (PNG exposure %+.1f EV)\n", o.out.c_str(), o.png.empty() ? "" : " and ", o.png.c_str(),
-              o.exposure);
+  std::printf("  wrote %s%s%s (PNG exposure %+.2f EV%s)\n", o.out.c_str(), o.png.empty() ? "" : " and ", o.png.c_str(),
+              exposureEv, o.exposure ? "" : ", auto");
   return 0;
 }
 

@@ -5,6 +5,7 @@
 
 #include <fogbeam/render/airlight_image.hpp>
 
+#include <optional>
 #include <string>
 
 namespace fogbeam::cli {
@@ -22,8 +23,9 @@ struct RenderOptions {
   std::string surface = "auto";
   /// --full: evaluate every pixel, no adaptive subsampling (default off).
   bool full = false;
-  /// --exposure: PNG exposure in EV (default 0: 1 cd/m2 = mid-grey).
-  double exposure = 0.0;
+  /// --exposure: PNG exposure in EV (x = L·2^EV / (1 cd/m2), Reinhard, sRGB); empty (default,
+  /// "auto"): the frame's automatic night exposure (autoExposureEv, fogbeam/render/exposure.hpp).
+  std::optional<double> exposure;
   /// --coarse-step: subsampling's initial block size in pixels; 0 (default, the library's): chosen
   /// from the camera.
   int coarseStep = SubsamplingOptions{}.coarse_step;

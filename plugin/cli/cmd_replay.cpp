@@ -15,6 +15,7 @@
 #include <fogbeam/plugin/frame_renderer.hpp>
 #include <fogbeam/plugin/scenario.hpp>
 #include <fogbeam/plugin/service_config.hpp>
+#include <fogbeam/render/exposure.hpp>
 #include <fogbeam/render/frame.hpp>
 
 #include <unistd.h>
@@ -88,7 +89,7 @@ class FileSink final : public plugin::FrameSink {
       lampRows_ << "frame,t_s,lamp,distance_m,optical_distance,intensity_cd,eye_illuminance_lx,glow_source_cd,"
                    "glow_peak_cd_m2\n";
     }
-    timeline_ << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px"
+    timeline_ << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px,exposure_ev"
               << (effects_ ? ",eye_illuminance_lx,veiling_luminance_cd_m2,glow_ms,glare_ms" : "") << "\n";
   }
 
@@ -106,7 +107,18 @@ class FileSink final : public plugin::FrameSink {
     if (o_.exr) {
       if (Status s = exr::writeFrameLayers(frame.layers, base.string() + ".exr"); !s) return s;
     }
-    png::RgbImage img = toImage(frame.layers, o_.exposure);
+    // The PNG's exposure: --exposure EV, or the frame's automatic night exposure adapted over
+    // simulation time (the interval between frames, 1/fps: deterministic, like the frames).
+    double ev = 0.0;
+    if (o_.exposure) {
+      ev = *o_.exposure;
+    } else {
+      const double target = autoExposureEv(frame.layers.composite, frame.layers.width, frame.layers.height);
+      ev = adaptation_.update(target, adaptation_.started() ? t_ - previousT_ : 0.0);
+      previousT_ = t_;
+    }
+    exposureEv.push_back(ev);
+    png::RgbImage img = toImage(frame.layers, ev);
     if (o_.png) {
       if (Status s = png::writePng(img, base.string() + ".png"); !s) return s;
     }
@@ -121,7 +133,7 @@ class FileSink final : public plugin::FrameSink {
     writeMs.push_back(std::chrono::duration<double, std::milli>(c - b).count());
     timeline_ << k_ << "," << t_ << "," << plugin::lightNames(frame.inputs.lights) << "," << frame.inputs.traffic_count
               << "," << tm.total_ms << "," << tm.table_wait_ms << "," << tm.surface_ms << "," << tm.airlight_ms << ","
-              << frame.airlight_evaluated;
+              << frame.airlight_evaluated << "," << ev;
     if (effects_) {
       const LampEffectsReport& fx = frame.effects;
       eyeLux.push_back(fx.eye_illuminance_lx);
@@ -149,6 +161,7 @@ class FileSink final : public plugin::FrameSink {
   // and with glow or glare on lx, cd/m², ms.
   std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs, glowMs, glareMs, eyeLux, veiling;
   std::vector<png::RgbImage> thumbs;  ///< the PNG images, for the contact sheet
+  std::vector<double> exposureEv;     ///< each PNG's exposure, EV
 
  private:
   const ReplayOptions& o_;
@@ -156,6 +169,8 @@ class FileSink final : public plugin::FrameSink {
   std::ofstream timeline_, lampRows_;
   std::size_t k_ = 0;
   double t_ = 0.0;
+  ExposureAdaptation adaptation_;
+  double previousT_ = 0.0;
 };
 
 int fail(const std::string& what) {
@@ -275,6 +290,8 @@ int runReplay(const ReplayOptions& o) {
                 "the centre max %.3g cd/m2 (per frame: frames.csv)\n",
                 percentile(sink.glowMs, 0.5), percentile(sink.glareMs, 0.5), percentile(sink.eyeLux, 1.0), percentile(sink.veiling, 1.0));
   }
+  std::printf("  PNG exposure    %s %+.2f to %+.2f EV (per frame: frames.csv)\n", o.exposure ? "fixed" : "auto,",
+              percentile(sink.exposureEv, 0.0), percentile(sink.exposureEv, 1.0));
   std::printf("  writing         median %.1f ms per frame\n", percentile(sink.writeMs, 0.5));
   std::printf("  wrote           %s/frame_*.%s, frames.csv%s, %s\n", o.out.c_str(),
               o.exr && o.png ? "{exr,png}" : o.exr ? "exr" : "png", effects ? ", effects_lamps.csv" : "",

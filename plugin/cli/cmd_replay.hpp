@@ -3,6 +3,7 @@
 // that includes CLI11 (its option names, help texts and checks are there).
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,8 +28,10 @@ struct ReplayOptions {
   bool png = true;  ///< false with --no-png: no PNG frames (the contact sheet is still written)
   /// --full: evaluate every pixel, no adaptive subsampling (default off).
   bool full = false;
-  /// --exposure: PNG exposure in EV (default 0: 1 cd/m2 = mid-grey).
-  double exposure = 0.0;
+  /// --exposure: PNG exposure in EV (x = L·2^EV / (1 cd/m2), Reinhard, sRGB); empty (default,
+  /// "auto"): each frame's automatic night exposure, adapted over simulation time like the eye
+  /// (autoExposureEv and ExposureAdaptation, fogbeam/render/exposure.hpp).
+  std::optional<double> exposure;
   /// --start: first frame's time, s (default 0).
   double start_s = 0.0;
   /// --end: last frame's time, s; negative (default): the scenario's duration.

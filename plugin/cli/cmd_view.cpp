@@ -3,7 +3,10 @@
 // channel's format: RGBA8 sRGB is shown as published (already tone-mapped and sRGB-encoded by the
 // writer), RGBA16F layers are linear cd/m² and go through the display mapping of
 // fogbeam::toneMapSrgb8 (x = L·2^EV, Reinhard x/(1 + x), sRGB transfer), the transmittance (A of
-// the overlay format) is shown as grey = T. A stats overlay per channel comes from the slot
+// the overlay format) is shown as grey = T. The exposure of linear layers is automatic by default
+// (fogbeam/render/exposure.hpp: the night exposure of the linear pixels shown, metered on the CPU
+// from each new frame, every visible tone-mapped channel in one histogram so that tiles match,
+// adapted like the eye over wall-clock time); key A toggles it, +/- set it by hand. A stats overlay per channel comes from the slot
 // metadata (stage times, latency, lights) and from the reader (fps shown, retries).
 //
 // Channels are attached with ipc::ShmReader and attached again when their writer goes or restarts
@@ -19,6 +22,8 @@
 #include <fogbeam/ipc/protocol.hpp>
 #include <fogbeam/ipc/shm_channel.hpp>
 #include <fogbeam/ipc/shm_layout.h>
+#include <fogbeam/render/exposure.hpp>
+#include <fogbeam/render/pixel_pack.hpp>
 
 #include <epoxy/gl.h>
 #include <fmt/format.h>
@@ -394,7 +399,11 @@ class TextBatch {
 
 struct ViewState {
   Layer layer = Layer::Composite;
-  double exposureEv = 0.0;
+  double exposureEv = 0.0;   ///< of linear layers: set by hand, or the automatic one
+  bool autoExposure = true;  ///< key A; --exposure EV starts with it off
+  ExposureAdaptation adaptation;
+  bool metered = false;      ///< a frame was metered (the automatic EV is the frames')
+  Clock::time_point lastMetered{};
   bool stats = true;
   int focus = -1;  ///< -1: every channel tiled; else the one shown alone
   int channelCount = 1;
@@ -410,6 +419,13 @@ void onKey(GLFWwindow* w, int key, int, int action, int) {
     case GLFW_KEY_2: case GLFW_KEY_KP_2: s->layer = Layer::Airlight; break;
     case GLFW_KEY_3: case GLFW_KEY_KP_3: s->layer = Layer::Transmittance; break;
     case GLFW_KEY_S: s->stats = !s->stats; break;
+    case GLFW_KEY_A:
+      // On: adapts from the EV shown (no jump), or takes the next frame's EV when none was
+      // metered yet. Off: keeps the EV shown.
+      s->autoExposure = !s->autoExposure;
+      if (s->autoExposure && s->metered) s->adaptation.startFrom(s->exposureEv);
+      else s->adaptation.reset();
+      break;
     case GLFW_KEY_TAB:  // all tiled → channel 0 alone → channel 1 alone → … → all tiled
       s->focus = s->focus + 1 >= s->channelCount ? -1 : s->focus + 1;
       break;
@@ -426,6 +442,7 @@ void onChar(GLFWwindow* w, unsigned int codepoint) {
   if (codepoint == '+' || codepoint == '=') s->exposureEv += 0.5;
   else if (codepoint == '-') s->exposureEv -= 0.5;
   else return;
+  s->autoExposure = false;  // by hand from the EV shown
   s->dirty = true;
 }
 
@@ -453,7 +470,7 @@ std::string statsText(const Channel& c, const ViewState& s, const Shown& shown, 
   std::string t = fmt::format("/fogbeam.{}  {}x{}  {}\n", c.name, c.texWidth, c.texHeight, formatName(c.texFormat));
   t += fmt::format("frame {}  {:.1f} fps shown  {}", c.meta.frame, c.fps(now),
               layerName(shown.layer));
-  if (shown.decode == Decode::ToneMap) t += fmt::format("  {:+.1f} EV", s.exposureEv);
+  if (shown.decode == Decode::ToneMap) t += fmt::format("  {:+.1f} EV{}", s.exposureEv, s.autoExposure ? " auto" : "");
   else if (shown.decode == Decode::AsIs) t += "  (tone-mapped by the writer)";
   t += fmt::format("\nwriter: total {:.1f} ms  surface {:.1f}  airlight {:.1f}  composite {:.1f}\n", c.meta.total_ms,
               c.meta.surface_ms, c.meta.airlight_ms, c.meta.composite_ms);
@@ -537,7 +554,7 @@ void draw(std::vector<Channel>& channels, const ViewState& s, Programs& p, int f
     glDisable(GL_SCISSOR_TEST);
   }
   if (s.stats) {
-    const std::string help = "1/2/3 layer  +/- EV  S stats  Tab focus  Q quit";
+    const std::string help = "1/2/3 layer  A auto EV  +/- EV  S stats  Tab focus  Q quit";
     const float scale = fbW >= 1280 ? 2.0f : 1.0f;
     const auto [w, h] = TextBatch::extent(help, scale);
     const float y = static_cast<float>(fbH) - h - 4.0f * scale;
@@ -563,6 +580,33 @@ Status screenshot(int fbW, int fbH, const std::string& path) {
   return png::writePng(img, path);
 }
 
+/// The automatic exposure: every visible channel whose layer is tone-mapped (linear RGB, the
+/// binary16 pixels of its newest frame) metered into one histogram, the EV adapted over the
+/// wall-clock time since the last metering.
+void meterExposure(const std::vector<Channel>& channels, ViewState& s, Clock::time_point now) {
+  ExposureMeter meter;
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    const Channel& c = channels[i];
+    if (c.texFormat == 0 || (s.focus >= 0 && static_cast<std::size_t>(s.focus) != i)) continue;
+    if (shownFor(c.texFormat, s.layer).decode != Decode::ToneMap) continue;
+    const int w = static_cast<int>(c.texWidth), h = static_cast<int>(c.texHeight);
+    if (c.pixels.size() < std::size_t{8} * c.texWidth * c.texHeight) continue;
+    const auto* half = reinterpret_cast<const std::uint16_t*>(c.pixels.data());
+    const int step = meteringStep(w, h);
+    int k = 0;
+    for (int y = step / 2; y < h; y += step, ++k)
+      for (int x = k % step; x < w; x += step) {
+        const std::uint16_t* p = half + 4 * (static_cast<std::size_t>(y) * c.texWidth + static_cast<std::size_t>(x));
+        meter.add(luminanceOf(halfToFloat(p[0]), halfToFloat(p[1]), halfToFloat(p[2])));
+      }
+  }
+  if (meter.count() == 0) return;
+  const double dt = s.metered ? std::chrono::duration<double>(now - s.lastMetered).count() : 0.0;
+  s.exposureEv = s.adaptation.update(meter.ev(), dt);
+  s.metered = true;
+  s.lastMetered = now;
+}
+
 }  // namespace
 
 // ---- the loop -------------------------------------------------------------------------------
@@ -584,7 +628,8 @@ int runView(const ViewOptions& o) {
   }
   ViewState state;
   state.layer = o.layer == "airlight" ? Layer::Airlight : o.layer == "transmittance" ? Layer::Transmittance : Layer::Composite;
-  state.exposureEv = o.exposure;
+  state.autoExposure = !o.exposure.has_value();
+  state.exposureEv = o.exposure.value_or(0.0);
   state.stats = !o.noStats;
   state.channelCount = static_cast<int>(channels.size());
 
@@ -652,8 +697,13 @@ int runView(const ViewOptions& o) {
     // Wake at least every 5 ms to poll the channels (a latest-word load each when idle).
     glfwWaitEventsTimeout(0.005);
     const auto now = Clock::now();
+    bool fresh = false;
     for (Channel& c : channels)
-      if (poll(c, now)) state.dirty = true;
+      if (poll(c, now)) fresh = true;
+    if (fresh) {
+      state.dirty = true;
+      if (state.autoExposure) meterExposure(channels, state, now);
+    }
     if (!sized && std::all_of(channels.begin(), channels.end(), [](const Channel& c) { return c.texWidth > 0; })) {
       int w = 0, h = 0;
       for (const Channel& c : channels) {
@@ -690,7 +740,8 @@ int runView(const ViewOptions& o) {
         std::fprintf(stderr, "fogbeam view: %s\n", st.error().message.c_str());
         return 1;
       }
-      std::printf("fogbeam view: wrote %s (%dx%d)\n", o.screenshot.c_str(), fbW, fbH);
+      std::printf("fogbeam view: wrote %s (%dx%d), exposure %+.4f EV (%s)\n", o.screenshot.c_str(), fbW, fbH,
+                  state.exposureEv, state.autoExposure ? "auto" : "fixed");
       for (const Channel& c : channels)
         std::printf("fogbeam view: /fogbeam.%s: %llu new frames shown, %.1f fps over the last 2 s, %llu reader retries\n",
                     c.name.c_str(), static_cast<unsigned long long>(c.newFrames), c.fps(Clock::now()),

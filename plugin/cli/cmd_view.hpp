@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,8 +15,9 @@ struct ViewOptions {
   std::vector<std::string> channels{"main"};
   /// --layer: initial layer, composite | airlight | transmittance (default composite).
   std::string layer = "composite";
-  /// --exposure: initial exposure of linear formats, EV (default 0).
-  double exposure = 0.0;
+  /// --exposure: initial exposure of linear formats, EV; empty (default, "auto"): the automatic
+  /// night exposure of the frames shown, adapted like the eye (key A toggles it).
+  std::optional<double> exposure;
   /// --no-stats: start without the stats overlay (default off).
   bool noStats = false;
   /// --width, --height: window size, pixels, both or neither; 0 (default): from the frames.

@@ -18,7 +18,9 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdint>
+#include <exception>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace fogbeam::cli {
@@ -27,6 +29,31 @@ namespace {
 
 // Each add*Command() adds one subcommand to the app and arranges for it to run when chosen; the
 // command sets `exitCode` to its exit status.
+
+/// --exposure auto|EV of render, replay and view: "auto" leaves `target` empty (the automatic
+/// night exposure, fogbeam/render/exposure.hpp), a number in [-20, 20] fixes the EV.
+CLI::Option* addExposureOption(CLI::App* sub, std::optional<double>& target, const std::string& help) {
+  const CLI::Validator autoOrEv(
+      [](std::string& v) -> std::string {
+        if (v == "auto") return {};
+        std::size_t used = 0;
+        double ev = 0.0;
+        try {
+          ev = std::stod(v, &used);
+        } catch (const std::exception&) {
+          used = 0;
+        }
+        if (used != v.size() || used == 0 || !(ev >= -20.0 && ev <= 20.0))
+          return "expected auto or an EV in [-20, 20], found '" + v + "'";
+        return {};
+      },
+      "auto|EV");
+  return sub
+      ->add_option_function<std::string>(
+          "--exposure", [&target](const std::string& v) { target = v == "auto" ? std::nullopt : std::optional(std::stod(v)); },
+          help)
+      ->check(autoOrEv);
+}
 
 void addValidateCommand(CLI::App& app, int& exitCode) {
   auto opts = std::make_shared<ValidateOptions>();
@@ -115,8 +142,10 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--table-cache", o->tableCache,
                   "where the vehicle lamps' view tables are kept between runs: auto (default: $XDG_CACHE_HOME/fogbeam "
                   "or ~/.cache/fogbeam) | off | a directory");
-  sub->add_option("--exposure", o->exposure,
-                  "PNG exposure in EV: x = L * 2^EV / (1 cd/m2), Reinhard x/(1+x), sRGB (default 0: 1 cd/m2 = mid-grey)");
+  addExposureOption(sub, o->exposure,
+                    "PNG exposure: auto (default: the frame's 99.5th percentile of luminance, lamp images left out, "
+                    "shown at 0.8 of white; EV clamped to [-16, 6]; printed) | EV in [-20, 20]: x = L * 2^EV / (1 cd/m2), "
+                    "Reinhard x/(1+x), sRGB (0: 1 cd/m2 = mid-grey)");
   sub->add_option("--coarse-step", o->coarseStep,
                   "subsampling: initial block size in pixels; 0 (default): 16 where 16 px span at most 0.8 deg, else 8")
       ->check(CLI::Range(0, 256));
@@ -209,7 +238,10 @@ void addReplayCommand(CLI::App& app, int& exitCode) {
   sub->add_flag("!--no-exr", o->exr, "do not write EXR frames");
   sub->add_flag("!--no-png", o->png, "do not write PNG frames (the contact sheet is still written)");
   sub->add_flag("--full", o->full, "evaluate every pixel (no adaptive subsampling)");
-  sub->add_option("--exposure", o->exposure, "PNG exposure, EV (default 0: 1 cd/m2 = mid-grey)");
+  addExposureOption(sub, o->exposure,
+                    "PNG exposure: auto (default: each frame's automatic night exposure, as render's, adapted over "
+                    "simulation time like the eye: time constant 0.5 s towards brighter, 1 s towards darker; in "
+                    "frames.csv) | EV in [-20, 20] (0: 1 cd/m2 = mid-grey)");
   sub->add_option("--start", o->start_s, "first frame's time, s (default 0)")->check(CLI::Range(0.0, 1e6));
   sub->add_option("--end", o->end_s, "last frame's time, s (default: the scenario's duration)")->check(CLI::Range(0.0, 1e6));
   sub->add_option("--sheet-columns", o->sheetColumns, "contact sheet columns (default 6)")->check(CLI::Range(1, 64));
@@ -246,14 +278,17 @@ void addSendCommand(CLI::App& app, int& exitCode) {
 void addViewCommand(CLI::App& app, int& exitCode) {
   auto o = std::make_shared<ViewOptions>();
   auto* sub = app.add_subcommand(
-      "view", "Show shared-memory channels in a window (keys: 1/2/3 composite/airlight/transmittance, +/- exposure by "
-              "0.5 EV, S stats, Tab focus one channel, Esc/Q quit)");
+      "view", "Show shared-memory channels in a window (keys: 1/2/3 composite/airlight/transmittance, A automatic "
+              "exposure on/off, +/- exposure by 0.5 EV (turns automatic off), S stats, Tab focus one channel, Esc/Q "
+              "quit)");
   sub->add_option("--channel", o->channels, "channel name(s), repeatable or comma-separated: tiled side by side (default main)")
       ->delimiter(',');
   sub->add_option("--layer", o->layer, "initial layer: composite | airlight | transmittance (default composite)")
       ->check(CLI::IsMember({"composite", "airlight", "transmittance"}));
-  sub->add_option("--exposure", o->exposure, "initial exposure of linear formats, EV: display = sRGB(Reinhard(2^EV * L)) "
-                                              "with L in cd/m2 (default 0)");
+  addExposureOption(sub, o->exposure,
+                    "initial exposure of linear formats: auto (default: the automatic night exposure of the frames "
+                    "shown, adapted like the eye; key A toggles it) | EV: display = sRGB(Reinhard(2^EV * L)) with L in "
+                    "cd/m2");
   sub->add_flag("--no-stats", o->noStats, "start without the stats overlay");
   sub->add_option("--width", o->width, "window width, pixels (default: the frames' native widths, tiled)")
       ->check(CLI::Range(16, 16384));

@@ -4,8 +4,10 @@
 #include <fogbeam/ipc/shm_layout.h>
 #include <fogbeam/plugin/frame_renderer.hpp>
 #include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/exposure.hpp>
 #include <fogbeam/render/pixel_pack.hpp>
 #include <fogbeam/render/surface.hpp>
+#include <fogbeam/render/surface_shading.hpp>
 
 #include <spdlog/spdlog.h>
 
@@ -165,6 +167,8 @@ struct ChannelRenderer::Impl {
   /// Glow, glare and the per-frame airlight evaluators of pending frames (below) run on it; the
   /// tables' evaluator has its own (a build makes a new one, possibly on another thread).
   std::shared_ptr<ThreadPool> framePool;
+  SurfaceShader cpuSurfaces;             ///< the CPU surface pass (no GL, or a failed GL frame)
+  kernels::ShadeFrame cpuShadeFrame;     ///< its per-frame lamps and planes, kept
 
   /// [render] pending_tables = "per-pixel": while the tables for the wanted fog and bending are
   /// not in use, a frame evaluates the ego lamps (with every other lamp that is on) through the
@@ -191,6 +195,12 @@ struct ChannelRenderer::Impl {
   TableKey effectsKey;
   const ThreadPool* effectsPool = nullptr;
   std::vector<float> glow, glare;
+  /// The automatic exposure (rgba8-srgb channels with exposure_ev = "auto") and the previous
+  /// frame's times it adapts over.
+  ExposureAdaptation exposure;
+  bool exposureClockSet = false;
+  double exposureSimTime = 0.0;
+  ipc::Clock::time_point exposureWallTime{};
 
   std::unique_ptr<AirlightImageEvaluator> eval;  ///< tables for `current`
   /// Pending frames' evaluator of the world and ego lamps (every one treated as moving: per
@@ -219,6 +229,7 @@ struct ChannelRenderer::Impl {
     s.camera = vehicleCamera;
     s.camera.position_m = O + R * vehicleCamera.position_m;
     s.camera.worldFromCamera = R * vehicleCamera.worldFromCamera;
+    if (config->bonnet) s.body.push_back(config->bonnet->quad(R, O));  // hangs from the vehicle like the lamps
     const Mat3 bend = worldFromYawPitchRoll(radians(key.bendingDeg), 0.0, 0.0);
     for (const RigPoint& p : egoPoints) {
       // Bending swivels the lamp about the vehicle's vertical axis through the lamp.
@@ -241,7 +252,9 @@ struct ChannelRenderer::Impl {
   [[nodiscard]] Status renderSurfaces(const Scene& lit, double& gpuAirlightMs);
   [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out);
   [[nodiscard]] Status renderEffects(const Scene& lit, const TableKey& key, RenderedFrame& out, EffectLayers& layers);
-  void compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out);
+  void compositeAndPack(const Medium& fog, const EffectLayers& layers, double adaptSeconds, RenderedFrame& out);
+  /// The rgba8-srgb exposure of this frame (ChannelConfig::autoExposure: adapted, else fixed).
+  double exposureFor(const FrameLayers& l, double adaptSeconds);
 
   Result<AirlightImageEvaluator> buildFor(const Scene& scene) const {
     auto e = AirlightImageEvaluator::build(scene, method, {}, config->threads, fast);
@@ -462,8 +475,9 @@ Status ChannelRenderer::Impl::renderSurfaces(const Scene& lit, double& gpuAirlig
     if (Status s = gl->render(lit, surface, gpuAir); !s) return Error{"GL surface pass: " + s.error().message};
     gpuAirlightMs = gl->stats().airlight_ms;
   } else if (!gl || !gl->render(lit, surface)) {
-    // CPU planes: no GL pass, or it failed this frame (then the planes stand in for it).
-    renderSurfacesCpu(lit, surface);
+    // CPU planes and body (the bonnet): no GL pass, or it failed this frame (then they stand in
+    // for it). SurfaceShader's SIMD path; renderSurfacesCpu is its double-precision oracle.
+    cpuSurfaces.render(lit, cpuShadeFrame, surface, framePool.get());
   }
   return Ok{};
 }
@@ -537,17 +551,29 @@ Status ChannelRenderer::Impl::renderEffects(const Scene& lit, const TableKey& ke
   return Ok{};
 }
 
-void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLayers& layers, RenderedFrame& out) {
+double ChannelRenderer::Impl::exposureFor(const FrameLayers& l, double adaptSeconds) {
+  if (!channel.autoExposure()) return channel.exposure_ev;
+  // The first frame takes its own EV; a clock that went back (a scenario loop, a new host) starts
+  // the adaptation again.
+  if (exposure.started() && !(adaptSeconds >= 0.0)) exposure.reset();
+  return exposure.update(autoExposureEv(l.composite, l.width, l.height), adaptSeconds);
+}
+
+void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLayers& layers, double adaptSeconds,
+                                             RenderedFrame& out) {
   // Composite (surface · T + airlight, glow and glare added), then the channel's wire format:
   // tone-mapped sRGB at the channel's exposure, linear cd/m², or the overlay (A = T).
-  compositeFrame(fog, *surf, air, out.layers, layers);
+  compositeFrame(fog, *surf, air, out.layers, layers, framePool.get());
   const std::size_t n = static_cast<std::size_t>(channel.width) * static_cast<std::size_t>(channel.height);
   out.packed.resize(n * ipc::bytesPerPixel(format));
   if (format == FOGBEAM_FORMAT_RGBA8_SRGB) {
-    packRgba8Srgb(out.layers.composite.data(), n, channel.exposure_ev, reinterpret_cast<std::uint8_t*>(out.packed.data()));
+    out.exposure_ev = exposureFor(out.layers, adaptSeconds);
+    packRgba8Srgb(out.layers.composite.data(), n, out.exposure_ev, reinterpret_cast<std::uint8_t*>(out.packed.data()));
   } else if (format == FOGBEAM_FORMAT_RGBA16F_LINEAR) {
+    out.exposure_ev = 0.0;
     packRgba16F(out.layers.composite.data(), nullptr, 1.0f, n, reinterpret_cast<std::uint16_t*>(out.packed.data()));
   } else {
+    out.exposure_ev = 0.0;
     packRgba16F(out.layers.overlay.data(), out.layers.transmittance.data(), 1.0f, n,
                 reinterpret_cast<std::uint16_t*>(out.packed.data()));
   }
@@ -632,7 +658,17 @@ Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_p
 
   // 6. Composite and pack.
   const auto tC = Clock::now();
-  m.compositeAndPack(scene.fog, layers, out);
+  // The automatic exposure adapts over the time between frames: the states' simulation time when
+  // frames wait for their inputs (lock-step, replay: the same states give the same frames), the
+  // wall clock when free-running (what the cab's driver sees).
+  const double simTime = host ? host->view->sim_time_s : state.ego.stamp.sim_time_s;
+  double adaptSeconds = 0.0;
+  if (m.exposureClockSet)
+    adaptSeconds = wait ? simTime - m.exposureSimTime : std::chrono::duration<double>(now - m.exposureWallTime).count();
+  m.exposureSimTime = simTime;
+  m.exposureWallTime = now;
+  m.exposureClockSet = true;
+  m.compositeAndPack(scene.fog, layers, adaptSeconds, out);
   const auto tE = Clock::now();
 
   // What the renderer knows of the frame; the service adds its bookkeeping (wireMeta).

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <set>
@@ -105,6 +106,12 @@ constexpr std::array kEgoKeys{
     KeySpec{"bending_max_deg"},
     KeySpec{"bending_tolerance_deg"},
     KeySpec{"lamp"},
+    KeySpec{"bonnet"},
+};
+// [ego.bonnet]: the scene's [bonnet] keys and `enabled` (a layer can switch off the bonnet a
+// lower layer, such as the built-in configuration, gave).
+constexpr std::array kBonnetServiceKeys{
+    KeySpec{"enabled"},
 };
 constexpr std::array kClassKeys{
     KeySpec{"class"},
@@ -135,6 +142,36 @@ std::string pathOf(const Section& s, std::string_view key, const std::string& ba
     if (std::string problem = checkFile(path); !problem.empty()) s.failAt(*s.find(key), key, problem);
   }
   return path;
+}
+
+/// [[channel]] exposure_ev: "auto" or an EV in [−20, 20]. Left out: "auto" on rgba8-srgb
+/// channels of fogbeam's own view, 0 on the others (their EV is fixed: the linear formats have
+/// none, and a depth_from channel decodes the host's colour at it). Needs format and depth_from.
+void parseExposure(const Section& s, ChannelConfig& ch) {
+  constexpr Range kEv{-20.0, 20.0};
+  const bool autoAllowed = ch.format == "rgba8-srgb" && ch.depth_from.empty();
+  ch.exposure_ev = 0.0;
+  ch.exposure_auto = autoAllowed;
+  const toml::node* n = s.find("exposure_ev");
+  if (!n) return;
+  const std::string expected = "expected \"auto\" or " + kEv.expectation() + " (EV), found " + config::describeNode(*n);
+  if (const auto* text = n->as_string()) {
+    if (text->get() != "auto") s.failAt(*n, "exposure_ev", expected);
+    if (ch.format != "rgba8-srgb")
+      s.failAt(*n, "exposure_ev", "\"auto\" applies to rgba8-srgb channels only, and format = " + config::inQuotes(ch.format));
+    if (!ch.depth_from.empty())
+      s.failAt(*n, "exposure_ev",
+               "expected a number with depth_from: the host's colour is decoded at the channel's exposure, which must "
+               "be fixed, found \"auto\"");
+    ch.exposure_auto = true;
+    return;
+  }
+  double ev = std::nan("");
+  if (const auto* f = n->as_floating_point()) ev = f->get();
+  if (const auto* i = n->as_integer()) ev = static_cast<double>(i->get());
+  if (!kEv.contains(ev)) s.failAt(*n, "exposure_ev", expected);
+  ch.exposure_ev = ev;
+  ch.exposure_auto = false;
 }
 
 std::uint16_t portOf(const Section& s, std::string_view key, std::uint16_t fallback) {
@@ -303,7 +340,6 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
       const std::array<std::string_view, 3> formats{"rgba8-srgb", "rgba16f-linear", "rgba16f-overlay"};
       ch.format = s.choice("format", formats, ch.format);
       ch.distance = s.boolean("distance", false);
-      ch.exposure_ev = s.number("exposure_ev", Range{-20.0, 20.0}, 0.0);
       if (const auto from = s.optString("depth_from")) {
         if (!ipc::validChannelName(*from))
           s.failAt(*s.find("depth_from"), "depth_from",
@@ -311,6 +347,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
                        " letters, digits, '_', '-' or '.', found " + config::inQuotes(*from));
         ch.depth_from = *from;
       }
+      parseExposure(s, ch);
       for (const ChannelConfig& other : c.channels) {
         if (other.name == ch.name) s.failAt(*s.find("name"), "name", "expected a unique name, found " + config::inQuotes(ch.name) + " again");
       }
@@ -325,6 +362,12 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     c.bending_tolerance_deg = s.number("bending_tolerance_deg", Range{0.0, 5.0}, c.bending_tolerance_deg);
     if (s.find("lamp")) c.ego = parseRig(s, baseDir, true);
     c.ego.name = "ego";
+    if (const toml::table* b = s.optTable("bonnet")) {
+      const Section bs(name, *b, "[ego.bonnet]");
+      const Bonnet parsed = config::parseBonnet(bs, kBonnetServiceKeys);
+      if (bs.boolean("enabled", true)) c.bonnet = parsed;
+      else c.bonnet.reset();
+    }
   }
   if (top.find("traffic_class")) {
     c.traffic.clear();
@@ -477,6 +520,7 @@ std::vector<config::KeyTable> serviceConfigKeyTables() {
       {"service.md", "`[input.can]`", "service [input.can]", keyNames({kCanKeys})},
       {"service.md", "`[[channel]]`: output views", "service [[channel]]", keyNames({kChannelKeys})},
       {"service.md", "`[ego]`", "service [ego]", keyNames({kEgoKeys})},
+      {"service.md", "`[ego.bonnet]`", "service [ego.bonnet], beside the scene's [bonnet] keys", keyNames({kBonnetServiceKeys})},
       {"service.md", "`[[traffic_class]]`: traffic rigs", "service [[traffic_class]]", keyNames({kClassKeys})},
       {"service.md", "Rig lamps: `[[ego.lamp]]` and `[[traffic_class.lamp]]`",
        "service [[ego.lamp]], [[traffic_class.lamp]], beside the scene's [[lamp]] keys", keyNames({kRigLampExtraKeys})},
@@ -532,11 +576,17 @@ std::string toToml(const ServiceConfig& c) {
       << "\neye_offset_m = " << vec(ch.eye_offset_m)
       << "\nyaw_deg = " << num(ch.yaw_deg) << "\npitch_deg = " << num(ch.pitch_deg) << "\nroll_deg = " << num(ch.roll_deg)
       << "\nformat = " << quoted(ch.format) << "\ndistance = " << flag(ch.distance)
-      << "\nexposure_ev = " << num(ch.exposure_ev) << (ch.depth_from.empty() ? "" : "\ndepth_from = " + quoted(ch.depth_from))
+      << "\nexposure_ev = " << (ch.autoExposure() ? std::string("\"auto\"") : num(ch.exposure_ev)) << (ch.depth_from.empty() ? "" : "\ndepth_from = " + quoted(ch.depth_from))
       << "\n";
   }
   o << "\n[ego]\neye_m = " << vec(c.eye_m) << "\nbending_max_deg = " << num(c.bending_max_deg)
     << "\nbending_tolerance_deg = " << num(c.bending_tolerance_deg) << "\n";
+  if (c.bonnet) {
+    const Bonnet& b = *c.bonnet;
+    o << "\n[ego.bonnet]\nrear_m = " << num(b.rear_m) << "\nfront_m = " << num(b.front_m) << "\nleft_m = " << num(b.left_m)
+      << "\nright_m = " << num(b.right_m) << "\nheight_m = " << num(b.height_m) << "\nreflectance = " << num(b.reflectance)
+      << "\n";
+  }
   for (const RigLamp& l : c.ego.lamps) o << "\n[[ego.lamp]]\n" << l.definition << "\n";
   for (const auto& [cls, rig] : c.traffic) {
     o << "\n[[traffic_class]]\nclass = " << cls << "\nname = " << quoted(rig.name) << "\n";

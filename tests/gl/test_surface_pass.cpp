@@ -2,10 +2,13 @@
 // ray–plane / ray–quad distances. Needs EGL (Mesa surfaceless here): without it every test skips
 // with the reason; set FOGBEAM_REQUIRE_GL=1 to turn such a skip into a failure (GPU CI).
 // On failure the GL and expected images are written as PFM next to each other in the build dir.
+// FOGBEAM_TEST_GL_SHADING=gpu|cpu picks where the suite's pass lights its pixels (GlOptions::shading;
+// default: auto, the CPU on llvmpipe): ctest runs the suite once each way (tests/CMakeLists.txt).
 #include <fogbeam/gl/surface_pass.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/physics/profile.hpp>
 #include <fogbeam/render/surface.hpp>
+#include <fogbeam/scene/scene.hpp>
 
 #include <gtest/gtest.h>
 
@@ -32,11 +35,19 @@ std::string& skipReason() {
   return reason;
 }
 
+GlOptions suiteOptions() {
+  GlOptions o;
+  const char* mode = std::getenv("FOGBEAM_TEST_GL_SHADING");
+  if (mode && std::string(mode) == "gpu") o.shading = SurfaceShading::Gpu;
+  if (mode && std::string(mode) == "cpu") o.shading = SurfaceShading::Cpu;
+  return o;
+}
+
 class GlSurfacePassTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (sharedPass() || !skipReason().empty()) return;
-    auto pass = GlSurfacePass::create();
+    auto pass = GlSurfacePass::create(suiteOptions());
     if (pass) {
       sharedPass() = std::move(pass).value();
       std::printf("GL surface pass: %s\n", sharedPass()->description().c_str());
@@ -573,8 +584,141 @@ TEST_F(GlSurfacePassTest, PipelinedSubmitCollectReturnsFramesInOrder) {
   const std::size_t centre = static_cast<std::size_t>(a.camera.height / 2 * a.camera.width + a.camera.width / 2);
   EXPECT_NEAR(outA.distance[centre], cpuA.distance[centre], 1e-4f * cpuA.distance[centre]);
   EXPECT_NEAR(outB.distance[centre], cpuB.distance[centre], 1e-4f * cpuB.distance[centre]);
+  // Each frame lit with its own camera and lamps (with shading on the CPU, the lamps and camera
+  // of a submit() wait in a queue beside the readback slots).
+  EXPECT_NEAR(outA.rgb[3 * centre + 1], cpuA.rgb[3 * centre + 1], 1e-3f * cpuA.rgb[3 * centre + 1]);
+  EXPECT_NEAR(outB.rgb[3 * centre + 1], cpuB.rgb[3 * centre + 1], 1e-3f * cpuB.rgb[3 * centre + 1]);
+  EXPECT_GT(std::abs(outA.rgb[3 * centre + 1] - outB.rgb[3 * centre + 1]), 1e-2f * outA.rgb[3 * centre + 1]);
   std::printf("timings (last frame, %dx%d): surface %.3f ms (GPU), submit %.3f ms, readback %.3f ms\n", b.camera.width,
               b.camera.height, pass().stats().surface_ms, pass().stats().submit_ms, pass().stats().readback_ms);
+}
+
+// ---------------------------------------------------------------------------------------------
+// (7) Where the pixels are lit: the shaders (GlOptions::shading = Gpu) and the CPU from the
+// geometry buffer (Cpu) on the shipped bench scene — the road model, its ground plane, the ego's
+// measured low beams and five street lamps, coloured here so that every channel differs.
+
+TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
+  auto loaded = loadScene(std::string(FOGBEAM_CONFIG_DIR) + "/scenes/bench.toml");
+  ASSERT_TRUE(loaded.has_value()) << loaded.error().message;
+  Scene scene = *loaded;
+  scene.camera.width = 480;
+  scene.camera.height = 270;
+  scene.fog.ambient_cd_m2 = 0.02;
+  scene.body.clear();  // the bonnet: its own test below (rasterised vs cast, distances within rounding)
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i)
+    scene.lamps[i].lamp.color = Vec3(1.0, 0.8 + 0.05 * static_cast<double>(i), 0.6);
+  GlOptions gpuOpt, cpuOpt;
+  gpuOpt.shading = SurfaceShading::Gpu;
+  cpuOpt.shading = SurfaceShading::Cpu;
+  auto gpu = GlSurfacePass::create(gpuOpt);
+  if (!gpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << gpu.error().message;
+  auto cpu = GlSurfacePass::create(cpuOpt);
+  ASSERT_TRUE(cpu.has_value()) << cpu.error().message;
+  EXPECT_EQ((*gpu)->shading(), SurfaceShading::Gpu);
+  EXPECT_EQ((*cpu)->shading(), SurfaceShading::Cpu);
+  SurfaceBuffers a, b;
+  ASSERT_TRUE((*gpu)->render(scene, a).has_value());
+  ASSERT_TRUE((*cpu)->render(scene, b).has_value());
+  ASSERT_EQ(a.rgb.size(), b.rgb.size());
+  EXPECT_EQ(a.distance, b.distance) << "the same geometry passes write the distances";
+  double peak = 0.0;
+  for (float v : a.rgb) peak = std::max(peak, static_cast<double>(v));
+  ASSERT_GT(peak, 0.0);
+  const ErrorStats s = stats(luminanceErrors(b, a, 1e-3 * peak));
+  print("bench road, shading on the CPU vs the shaders", s);
+  EXPECT_GT(s.n, 30000u);
+  EXPECT_LT(s.p99, 1e-3);
+  EXPECT_LT(s.max, 1e-2);
+  std::size_t sky = 0;
+  for (std::size_t k = 0; k < b.distance.size(); ++k)
+    if (!std::isfinite(b.distance[k])) {
+      ++sky;
+      EXPECT_EQ(b.rgb[3 * k], static_cast<float>(scene.fog.ambient_cd_m2));
+    }
+  EXPECT_GT(sky, 0u);
+  std::printf("shading on the CPU: %.2f ms for %dx%d (readback %.2f ms)\n", (*cpu)->stats().shade_ms,
+              scene.camera.width, scene.camera.height, (*cpu)->stats().readback_ms);
+  dumpOnFailure("shading_cpu_vs_gpu", b, a);
+}
+
+// (8) The ego car's bonnet (Scene::body): the shaders and the CPU shading agree, its distances
+// are those of the plate, and it hides the ego's low beams from the eye.
+TEST(GlSurfaceShading, TheBonnetHidesTheEgoLampsInBothShadings) {
+  auto loaded = loadScene(std::string(FOGBEAM_CONFIG_DIR) + "/scenes/bench.toml");
+  ASSERT_TRUE(loaded.has_value()) << loaded.error().message;
+  Scene scene = *loaded;
+  scene.camera.width = 480;
+  scene.camera.height = 270;
+  scene.camera.worldFromCamera = worldFromYawPitchRoll(0.0, radians(8.0), 0.0);  // looking down: the lamps in view
+  const Bonnet bonnet;  // defaults: x 0.8–2.3 m, y ±0.85 m, z 0.9 m
+  scene.body = {bonnet.quad()};
+  GlOptions gpuOpt, cpuOpt;
+  gpuOpt.shading = SurfaceShading::Gpu;
+  cpuOpt.shading = SurfaceShading::Cpu;
+  auto gpu = GlSurfacePass::create(gpuOpt);
+  if (!gpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << gpu.error().message;
+  auto cpu = GlSurfacePass::create(cpuOpt);
+  ASSERT_TRUE(cpu.has_value()) << cpu.error().message;
+  SurfaceBuffers a, b;
+  ASSERT_TRUE((*gpu)->render(scene, a).has_value());
+  ASSERT_TRUE((*cpu)->render(scene, b).has_value());
+  const Camera& cam = scene.camera;
+  std::size_t onPlate = 0, agree = 0;
+  for (int j = 0; j < cam.height; ++j)
+    for (int i = 0; i < cam.width; ++i) {
+      const Vec3 d = cam.rayDirection(i + 0.5, j + 0.5);
+      if (!(d.z < 0.0)) continue;
+      const double t = (bonnet.height_m - cam.position_m.z) / d.z;  // the plate's plane
+      const Vec3 x = cam.position_m + t * d;
+      // Pixels whose centre is well inside the plate (a few mm from its edges).
+      if (x.x < bonnet.rear_m + 0.01 || x.x > bonnet.front_m - 0.01 || x.y < bonnet.right_m + 0.01 ||
+          x.y > bonnet.left_m - 0.01)
+        continue;
+      ++onPlate;
+      const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(cam.width) + static_cast<std::size_t>(i);
+      const bool ok = std::abs(static_cast<double>(a.distance[k]) - t) < 1e-5 * t &&
+                      std::abs(static_cast<double>(b.distance[k]) - t) < 1e-6 * t;
+      agree += ok ? 1 : 0;
+    }
+  std::printf("bonnet: %zu pixels inside the plate, %zu at its distance in both shadings\n", onPlate, agree);
+  EXPECT_GT(onPlate, 5000u);
+  EXPECT_EQ(agree, onPlate);
+  // The ego's low beams lie below the plate: the rays towards them end on it.
+  for (const SceneLamp& l : scene.lamps) {
+    if (l.mount != LampMount::Vehicle) continue;
+    const Vec3 toLamp = l.lamp.position_m - cam.position_m;
+    const Vec3 local = glm::transpose(cam.worldFromCamera) * toLamp;
+    const double f = cam.focalLengthPixels();
+    const Vec2 c = cam.principalPoint();
+    const int i = static_cast<int>(c.x - f * local.y / local.x), j = static_cast<int>(c.y - f * local.z / local.x);
+    ASSERT_TRUE(i >= 0 && i < cam.width && j >= 0 && j < cam.height) << l.name << " is not in view";
+    const std::size_t k = static_cast<std::size_t>(j) * static_cast<std::size_t>(cam.width) + static_cast<std::size_t>(i);
+    EXPECT_LT(b.distance[k], glm::length(toLamp) - 0.2) << l.name << ": the bonnet should hide it";
+  }
+  double peak = 0.0;
+  for (float v : a.rgb) peak = std::max(peak, static_cast<double>(v));
+  const ErrorStats s = stats(luminanceErrors(b, a, 1e-3 * peak));
+  print("bench road with a bonnet, shading on the CPU vs the shaders", s);
+  EXPECT_LT(s.p99, 1e-3);
+  dumpOnFailure("bonnet_cpu_vs_gpu", b, a);
+  // Without the road model, against the double-precision CPU renderer, which casts the bonnet too.
+  scene.gltf_path.reset();
+  SurfaceBuffers g, oracle;
+  ASSERT_TRUE((*cpu)->render(scene, g).has_value());
+  renderSurfacesCpu(scene, oracle);
+  std::size_t mismatched = 0;
+  for (std::size_t k = 0; k < g.distance.size(); ++k)
+    if (std::isfinite(g.distance[k]) != std::isfinite(oracle.distance[k]) ||
+        (std::isfinite(g.distance[k]) && std::abs(g.distance[k] - oracle.distance[k]) > 1e-6f * oracle.distance[k]))
+      ++mismatched;
+  EXPECT_EQ(mismatched, 0u);
+  double top = 0.0;
+  for (float v : oracle.rgb) top = std::max(top, static_cast<double>(v));
+  const ErrorStats so = stats(luminanceErrors(g, oracle, 1e-3 * top));
+  print("planes + bonnet, shading on the CPU vs renderSurfacesCpu", so);
+  EXPECT_LT(so.p99, 1e-4);
+  EXPECT_LT(so.max, 1e-3);
 }
 
 }  // namespace

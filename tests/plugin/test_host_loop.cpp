@@ -177,8 +177,8 @@ struct DepthWriter {
 TEST(HostLoop, OverlayOfAHostsPlaneDepthEqualsTheServicesOwnViewOfThePlane) {
   // Lock-step on the host's depth frames: each step renders the own channel (CPU road plane,
   // ego at the origin: no ego message) and the host channel (the host's plane depth, the same
-  // camera), from one state.
-  LoopConfig lc = loopConfig({"timing.mode=\"lock-step\""});
+  // camera), from one state. No bonnet: the host's plane depth has none.
+  LoopConfig lc = loopConfig({"timing.mode=\"lock-step\"", "ego.bonnet.enabled=false"});
   auto created = Service::create(lc.config);
   ASSERT_TRUE(created) << created.error().message;
   Service& service = **created;

@@ -152,6 +152,88 @@ aperture_samples = 2
   EXPECT_EQ(l.lamp.aperture.samples, 2);
 }
 
+TEST(ServiceConfig, ExposureIsAutoOrAFixedEv) {
+  TempDir d;
+  // Built in: the automatic night exposure, printed as such.
+  auto builtIn = loadServiceConfig("", {});
+  ASSERT_TRUE(builtIn) << builtIn.error().message;
+  EXPECT_TRUE(builtIn->channels.at(0).autoExposure());
+  EXPECT_NE(toToml(*builtIn).find("exposure_ev = \"auto\""), std::string::npos);
+  // Left out: auto on rgba8-srgb views of fogbeam's own, fixed 0 on linear formats and host views.
+  auto c = loadServiceConfig(d.write("ev.toml", R"(
+[[channel]]
+name = "plain"
+[[channel]]
+name = "fixed"
+exposure_ev = -1.5
+[[channel]]
+name = "whole"
+exposure_ev = 3
+[[channel]]
+name = "said"
+exposure_ev = "auto"
+[[channel]]
+name = "linear"
+format = "rgba16f-linear"
+[[channel]]
+name = "hosted"
+depth_from = "host-depth"
+[[channel]]
+name = "hosted-fixed"
+depth_from = "host-depth-2"
+exposure_ev = 1.25
+)"),
+                             {});
+  ASSERT_TRUE(c) << c.error().message;
+  const auto& ch = c->channels;
+  ASSERT_EQ(ch.size(), 7u);
+  EXPECT_TRUE(ch[0].autoExposure());
+  EXPECT_FALSE(ch[1].autoExposure());
+  EXPECT_DOUBLE_EQ(ch[1].exposure_ev, -1.5);
+  EXPECT_FALSE(ch[2].autoExposure());
+  EXPECT_DOUBLE_EQ(ch[2].exposure_ev, 3.0);
+  EXPECT_TRUE(ch[3].autoExposure());
+  EXPECT_FALSE(ch[4].autoExposure());
+  EXPECT_DOUBLE_EQ(ch[4].exposure_ev, 0.0);
+  EXPECT_FALSE(ch[5].autoExposure());
+  EXPECT_DOUBLE_EQ(ch[5].exposure_ev, 0.0);
+  EXPECT_FALSE(ch[6].autoExposure());
+  EXPECT_DOUBLE_EQ(ch[6].exposure_ev, 1.25);
+  // --print-config loads back the same: "auto" and the numbers.
+  const std::string printed = toToml(*c);
+  auto back = loadServiceConfig(d.write("printed.toml", printed), {});
+  ASSERT_TRUE(back) << back.error().message << "\n" << printed;
+  for (std::size_t k = 0; k < ch.size(); ++k) {
+    EXPECT_EQ(back->channels[k].autoExposure(), ch[k].autoExposure()) << k;
+    EXPECT_DOUBLE_EQ(back->channels[k].exposure_ev, ch[k].exposure_ev) << k;
+  }
+
+  // Anything else: the file, the line, the key, what was expected and what was found.
+  auto errorOf = [&](const std::string& text, std::vector<std::string> set = {}) {
+    auto r = loadServiceConfig(d.write("bad.toml", text), set);
+    return r ? std::string("(loaded)") : r.error().message;
+  };
+  auto expectError = [&](const std::string& text, const std::string& want) {
+    const std::string got = errorOf(text);
+    EXPECT_NE(got.find(want), std::string::npos) << "expected: " << want << "\ngot: " << got;
+  };
+  expectError("[[channel]]\nname = \"a\"\nexposure_ev = \"automatic\"\n",
+              "bad.toml:3: [[channel]] #1 exposure_ev: expected \"auto\" or a number in [-20, 20] (EV), found the string "
+              "\"automatic\"");
+  expectError("[[channel]]\nname = \"a\"\nexposure_ev = 25\n",
+              "bad.toml:3: [[channel]] #1 exposure_ev: expected \"auto\" or a number in [-20, 20] (EV), found 25");
+  expectError("[[channel]]\nname = \"a\"\nexposure_ev = true\n",
+              "bad.toml:3: [[channel]] #1 exposure_ev: expected \"auto\" or a number in [-20, 20] (EV), found the boolean true");
+  expectError("[[channel]]\nname = \"a\"\nexposure_ev = nan\n", "bad.toml:3: [[channel]] #1 exposure_ev: expected \"auto\"");
+  expectError("[[channel]]\nname = \"a\"\nformat = \"rgba16f-overlay\"\nexposure_ev = \"auto\"\n",
+              "bad.toml:4: [[channel]] #1 exposure_ev: \"auto\" applies to rgba8-srgb channels only, and format = "
+              "\"rgba16f-overlay\"");
+  expectError("[[channel]]\nname = \"a\"\ndepth_from = \"h\"\nexposure_ev = \"auto\"\n",
+              "bad.toml:4: [[channel]] #1 exposure_ev: expected a number with depth_from");
+  expectError("[[channel]]\nname = \"a\"\nformat = \"rgba16f-overlay\"\nexposure_ev = 1\n",
+              "exposure_ev applies to rgba8-srgb only");
+}
+
 TEST(ServiceConfig, EffectsAreOffByDefaultAndMergeKeyByKey) {
   auto c = loadServiceConfig("", {});
   ASSERT_TRUE(c) << c.error().message;

@@ -4,6 +4,7 @@
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/frame.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
 
 #include <gtest/gtest.h>
 
@@ -91,6 +92,47 @@ TEST(NoAllocation, SteadyFramesDoNotAllocate) { expectSteadyFramesDoNotAllocate(
 // The maps are rebuilt every frame (the frame's distances may change with nothing else moving):
 // into the buffers of the frames before.
 TEST(NoAllocation, SteadyFramesWithLampMapsDoNotAllocate) { expectSteadyFramesDoNotAllocate(MovingLampPath::Map); }
+
+// The glow and glare layers (lamp_effects.hpp, fast path): a steady scene reuses its glow curves,
+// grids, flags and layers.
+TEST(NoAllocation, SteadyGlowAndGlareFramesDoNotAllocate) {
+  Scene s;
+  s.fog.extinction_per_m = extinctionFromVisibility(100.0);
+  s.fog.phase = makeHenyeyGreenstein(0.85).value();
+  s.camera.width = 203;
+  s.camera.height = 117;
+  auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
+  ASSERT_TRUE(low);
+  SceneLamp a;
+  a.name = "oncoming low beam, a long name that does not fit a short string";
+  a.lamp.position_m = {60.0, 3.5, 0.65};
+  a.lamp.worldFromLamp = worldFromYawPitchRoll(radians(180.0), 0.0, 0.0);
+  a.lamp.profile = *low;
+  s.lamps.push_back(a);
+  a.name = "street";
+  a.lamp.position_m = {70.0, -3.0, 8.0};  // T ≈ 2.1: it glows
+  a.lamp.profile = makeProfile(IsotropicProfile{4000.0}).value();
+  s.lamps.push_back(a);
+  s.planes.push_back(Plane{{0, 0, 0}, {0, 0, 1}, 0.15});
+  SurfaceBuffers surf;
+  renderSurfacesCpu(s, surf);
+  GlowOptions glow;
+  glow.enabled = true;
+  GlareOptions glare;
+  glare.enabled = true;
+  auto fx = LampEffects::build(s, glow, glare, std::make_shared<ThreadPool>(2));
+  ASSERT_TRUE(fx);
+  std::vector<float> glowLayer, glareLayer;
+  LampEffectsReport rep;
+  for (int warm = 0; warm < 2; ++warm) fx->evaluate(s, surf, glowLayer, glareLayer, rep);
+  allocations = 0;
+  counting = true;
+  fx->evaluate(s, surf, glowLayer, glareLayer, rep);
+  counting = false;
+  EXPECT_EQ(allocations.load(), 0) << "heap allocations during a steady glow and glare frame";
+  ASSERT_EQ(rep.lamps.size(), 2u);
+  EXPECT_GT(rep.lamps[1].apsf_terms, 0);
+}
 
 }  // namespace
 }  // namespace fogbeam

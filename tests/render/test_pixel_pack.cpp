@@ -5,6 +5,7 @@
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/pixel_pack.hpp>
 
+#include <algorithm>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -70,6 +71,52 @@ TEST(PixelPack, SimdPackerMatchesScalarOnEveryTarget) {
   packRgba16F(rgb.data(), nullptr, 1.0f, n, constant.data());
   EXPECT_EQ(constant[3], 0x3C00);
   EXPECT_EQ(constant[4 * (n - 1) + 3], 0x3C00);
+}
+
+// packRgba8Srgb's definition, the scalar loop it was before its Highway kernel (2026-11-26):
+// per channel x = max(v, 0)·2^EV, y = x/(1 + x) (1 where x is not finite), the code of the sRGB
+// curve at ⌊y·16384 + 0.5⌋/16384.
+std::vector<std::uint8_t> rgba8Definition(const std::vector<float>& rgb, double ev) {
+  std::vector<std::uint8_t> out(rgb.size() / 3 * 4);
+  const float gain = static_cast<float>(std::exp2(ev));
+  for (std::size_t i = 0; i < rgb.size() / 3; ++i) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      const float x = std::max(rgb[3 * i + c], 0.0f) * gain;
+      const volatile float y = std::isfinite(x) ? x / (1.0f + x) : 1.0f;  // volatile: no fused multiply-add below
+      const volatile float scaled = y * 16384.0f;
+      const double q = static_cast<double>(static_cast<std::size_t>(scaled + 0.5f)) / 16384.0;
+      const double srgb = q <= 0.0031308 ? 12.92 * q : 1.055 * std::pow(q, 1.0 / 2.4) - 0.055;
+      out[4 * i + c] = static_cast<std::uint8_t>(std::lround(std::clamp(srgb, 0.0, 1.0) * 255.0));
+    }
+    out[4 * i + 3] = 255;
+  }
+  return out;
+}
+
+TEST(PixelPack, Rgba8SimdPackerMatchesItsDefinitionOnEveryTarget) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-14.0f, 14.0f);
+  const std::size_t n = 4099;  // not a multiple of any vector: the scalar tail runs too
+  std::vector<float> rgb(3 * n);
+  for (float& v : rgb) {
+    const float sign = u(rng), magnitude = u(rng);
+    v = std::exp2(magnitude) * (sign < -10.0f ? -1.0f : 1.0f);
+  }
+  rgb[0] = std::numeric_limits<float>::infinity();
+  rgb[1] = std::numeric_limits<float>::quiet_NaN();
+  rgb[2] = -std::numeric_limits<float>::infinity();
+  rgb[3] = 0.0f;
+  rgb[4] = 3e38f;
+  for (double ev : {-6.0, 0.0, 2.5}) {
+    const std::vector<std::uint8_t> want = rgba8Definition(rgb, ev);
+    for (const std::string& t : kernels::availableTargets()) {
+      ASSERT_TRUE(kernels::forceTarget(t));
+      std::vector<std::uint8_t> got(4 * n, 0);
+      packRgba8Srgb(rgb.data(), n, ev, got.data());
+      EXPECT_EQ(got, want) << "target " << t << ", EV " << ev;
+    }
+    kernels::forceTarget("");
+  }
 }
 
 TEST(PixelPack, Rgba8MatchesToneMapWithinOneCode) {

@@ -8,14 +8,21 @@ the Python reader (docs/shm.md): sRGB(Reinhard(2^EV * L)) for linear layers (the
 fogbeam::toneMapSrgb8), round(255 * T) for the transmittance, the bytes themselves for RGBA8 sRGB.
 Tolerance: 2/255 (the GPU's pow against numpy's).
 
+The exposure of linear layers is automatic unless --exposure gives an EV: the viewer prints the EV
+of its screenshot, which must be the rule of fogbeam/render/exposure.hpp applied to the frame
+(the 99.5th percentile of Rec. 709 luminance shown at x = 4: EV = log2(4 / L), clamped to
+[-16, 6]; within 0.1 EV, the histogram's bin), and the screenshot must show the frame at it.
+
 Cases (one ctest each):
   overlay_layers   RGBA16F overlay: airlight at +1 EV, composite (falls back to the airlight) at
-                   0 EV, transmittance with the stats overlay (text must be drawn, top left)
+                   the automatic EV, transmittance with the stats overlay (text must be drawn, top
+                   left)
   tiled_channels   three channels side by side (overlay, RGBA8, RGBA16F linear at -1 EV)
   writer_restart   the writer closes and another starts (new generation, new pattern): the viewer
                    attaches again and shows the new frames
   writer_killed    the same with a writer killed by SIGKILL (its segment left behind, stale)
-  keys             1/2/3, +/-, S, Tab typed with xdotool (skipped without it); Q quits
+  keys             1/2/3, +/- (automatic off), S, Tab typed with xdotool (skipped without it); A
+                   turns the automatic exposure on after --exposure 1; Q quits
   timeout_unknown_channel  no such channel: exit 1 with a message after --timeout
   no_display       no DISPLAY: exit 2 with "no display"
 
@@ -118,6 +125,26 @@ def tonemap8(linear, ev):
     return np.clip(np.rint(255 * s), 0, 255)
 
 
+def auto_ev(frame):
+    """The automatic exposure of fogbeam/render/exposure.hpp for the RGB of `frame`, exact
+    percentile (the viewer's histogram is within 0.1 EV of it)."""
+    rgb = np.asarray(frame[..., :3], dtype=np.float32)
+    y = 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
+    ref = float(np.percentile(y, 99.5))
+    return float(np.clip(np.log2(4.0 / ref), -16.0, 6.0)) if ref > 0 else 6.0
+
+
+def shown_ev(output, mode):
+    """The EV the viewer printed with its screenshot, and that it was `mode` (auto | fixed)."""
+    for line in output.splitlines():
+        if "exposure" in line and line.startswith("fogbeam view: wrote"):
+            words = line.split("exposure ")[1].split()
+            check(words[2] == f"({mode})", f"exposure {mode}: {line}")
+            return float(words[0])
+    check(False, "the viewer printed its exposure")
+    return 0.0
+
+
 def run_view(display, args, timeout=60):
     proc = subprocess.run([FOGBEAM, "view", *args], env=view_env(display), stdout=subprocess.PIPE,
                           stderr=subprocess.PIPE, text=True, timeout=timeout)
@@ -127,7 +154,7 @@ def run_view(display, args, timeout=60):
     return proc
 
 
-def screenshot(display, channels, out, extra, after=3):
+def screenshot(display, channels, out, extra, after=3, output=False):
     path = os.path.join(OUT_DIR, out)
     if os.path.exists(path):
         os.remove(path)
@@ -136,7 +163,8 @@ def screenshot(display, channels, out, extra, after=3):
     check(proc.returncode == 0 and os.path.exists(path), f"{out}: view exited 0 and wrote the screenshot")
     if not os.path.exists(path):
         raise SystemExit(1)
-    return np.asarray(Image.open(path).convert("RGB")).astype(np.int32), path
+    shot = np.asarray(Image.open(path).convert("RGB")).astype(np.int32)
+    return (shot, path, proc.stdout) if output else (shot, path)
 
 
 def patch_centres(width, height):
@@ -173,8 +201,12 @@ def case_overlay_layers(display):
         check(shot.shape[:2] == (H, W), f"window at the frame's native size {W}x{H}: {shot.shape[1]}x{shot.shape[0]}")
         compare(shot, path, 0, frame, lambda px: tonemap8(px[:3], 1.0), "airlight +1 EV")
 
-        shot, path = screenshot(display, [ch], "overlay_composite.png", ["--layer", "composite", "--no-stats"])
-        compare(shot, path, 0, frame, lambda px: tonemap8(px[:3], 0.0), "composite falls back to the airlight, 0 EV")
+        shot, path, out = screenshot(display, [ch], "overlay_composite.png", ["--layer", "composite", "--no-stats"],
+                                     output=True)
+        ev = shown_ev(out, "auto")
+        want = auto_ev(frame)
+        check(abs(ev - want) <= 0.1, f"automatic exposure {ev:+.3f} EV, the rule's {want:+.3f} EV")
+        compare(shot, path, 0, frame, lambda px: tonemap8(px[:3], ev), f"composite falls back to the airlight, auto {ev:+.2f} EV")
 
         shot, path = screenshot(display, [ch], "overlay_transmittance_stats.png", ["--layer", "transmittance"])
         # The stats box covers the top rows; the bottom row's patch centres stay clear.
@@ -299,7 +331,8 @@ def case_keys(display):
         # is an X error (BadMatch).
         window = xdotool(display, "search", "--sync", "--onlyvisible", "--name", "^fogbeam view: " + names[0]).split()[0]
         xdotool(display, "windowfocus", "--sync", window)
-        # 3 then 2: airlight; + + -: +0.5 EV; S: stats on; Tab: the first channel alone.
+        # 3 then 2: airlight; + + -: +0.5 EV (by hand: the automatic exposure off); S: stats on;
+        # Tab: the first channel alone.
         for key in ("3", "2", "plus", "plus", "minus", "s", "Tab"):
             xdotool(display, "key", "--window", window, key)
         time.sleep(0.3)  # the viewer handles them on its next turn (every 5 ms)
@@ -322,9 +355,42 @@ def case_keys(display):
     # Tab: the first channel alone, fitted and centred in the whole window.
     x0 = (shot.shape[1] - W) // 2
     compare(shot, path, x0, frame, lambda px: tonemap8(px[:3], 0.5), "keys 3 2 + + - S Tab: airlight +0.5 EV", rows=(1,))
+    shown_ev(out, "fixed")
     check(int(np.abs(shot[H // 2:H - 30, 4:x0 - 4] - 13).max()) <= 2, "beside the focused channel: background only")
     white = int((shot[4:48, 4:200].min(axis=2) >= 240).sum())
     check(white >= 100, f"S turned the stats on: {white} white text pixels top left")
+
+    # A after --exposure 1: the automatic exposure on (the frame's own EV: none was shown yet).
+    ch = channel_name("keys-auto")
+    path = os.path.join(OUT_DIR, "keys_auto.png")
+    if os.path.exists(path):
+        os.remove(path)
+    view = subprocess.Popen([FOGBEAM, "view", "--channel", ch, "--no-stats", "--exposure", "1", "--screenshot", path,
+                             "--after-frames", "3", "--timeout", "30"], env=view_env(display),
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    writer = None
+    try:
+        window = xdotool(display, "search", "--sync", "--onlyvisible", "--name", "^fogbeam view: " + ch).split()[0]
+        xdotool(display, "windowfocus", "--sync", window)
+        xdotool(display, "key", "--window", window, "a")
+        time.sleep(0.3)
+        writer = start_writer(ch, "rgba16f-linear", W, H)
+        frame = published(ch)
+        out, _ = view.communicate(timeout=40)
+    finally:
+        if view.poll() is None:
+            view.kill()
+            view.wait()
+        if writer is not None:
+            writer.terminate()
+            writer.wait(10)
+    print("  | " + out.replace("\n", "\n  | "))
+    check(view.returncode == 0 and os.path.exists(path), "view exited 0 with its screenshot")
+    if os.path.exists(path):
+        ev, want = shown_ev(out, "auto"), auto_ev(frame)
+        check(abs(ev - want) <= 0.1 and abs(ev - 1.0) > 0.5, f"A: automatic exposure {ev:+.3f} EV, the rule's {want:+.3f} EV")
+        shot = np.asarray(Image.open(path).convert("RGB")).astype(np.int32)
+        compare(shot, path, 0, frame, lambda px: tonemap8(px[:3], ev), f"A: composite at auto {ev:+.2f} EV")
 
     # Q quits: exit 0 without a screenshot.
     ch = channel_name("keys-quit")

@@ -43,6 +43,7 @@ ReadbackRing::ReadbackRing(bool timerQueries) {
     s.color.buffer = genBuffer();
     s.distance.buffer = genBuffer();
     s.airlight.buffer = genBuffer();
+    s.rho.buffer = genBuffer();
     if (timerQueries) {
       s.surfaceTimer = genQuery();
       s.airlightTimer = genQuery();
@@ -79,6 +80,8 @@ void ReadbackRing::endFrame(const Reads& reads) {
   glBindFramebuffer(GL_READ_FRAMEBUFFER, reads.surfaceFbo);
   readInto(slot.color, GL_COLOR_ATTACHMENT0, GL_RGBA, reads.width, reads.height, 4 * n * sizeof(float));
   readInto(slot.distance, GL_COLOR_ATTACHMENT1, GL_RED, reads.width, reads.height, n * sizeof(float));
+  slot.gbuffer = reads.gbuffer;
+  if (slot.gbuffer) readInto(slot.rho, GL_COLOR_ATTACHMENT2, GL_RG, reads.width, reads.height, 2 * n * sizeof(float));
   glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
   slot.width = reads.width;
   slot.height = reads.height;
@@ -94,7 +97,8 @@ void ReadbackRing::setSubmitMs(double ms) noexcept {
   if (!pending_.empty()) slots_[pending_.back()].submitMs = ms;
 }
 
-Status ReadbackRing::collect(SurfaceBuffers& out, std::vector<float>* airlight, GlSurfaceStats& stats) {
+Status ReadbackRing::collect(SurfaceBuffers& out, std::vector<float>* airlight, GlSurfaceStats& stats,
+                             const Shade& shade) {
   const auto t0 = Clock::now();
   Slot& slot = slots_[pending_.front()];
   pending_.pop_front();
@@ -115,14 +119,36 @@ Status ReadbackRing::collect(SurfaceBuffers& out, std::vector<float>* airlight, 
   out.height = slot.height;
   out.rgb.resize(3 * n);
   out.distance.resize(n);
-  const float* rgba = mapForRead(slot.color.buffer, 4 * n * sizeof(float));
-  if (rgba == nullptr) return Error{"glMapBufferRange (colour PBO) failed: " + glErrorName(glGetError())};
-  flipRgbaToRgb(rgba, w, h, out.rgb.data());
-  glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
-  const float* dist = mapForRead(slot.distance.buffer, n * sizeof(float));
-  if (dist == nullptr) return Error{"glMapBufferRange (distance PBO) failed: " + glErrorName(glGetError())};
-  for (std::size_t j = 0; j < h; ++j) std::memcpy(out.distance.data() + w * j, dist + w * (h - 1 - j), w * sizeof(float));
-  glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+  if (slot.gbuffer) {
+    // The three buffers mapped at once (GL allows several mapped buffers), shaded straight from
+    // the mapping: no copy of the 28 bytes a pixel.
+    if (!shade) return Error{"GlSurfacePass: a geometry-buffer frame needs a shader to collect it"};
+    const float* mapped[3] = {nullptr, nullptr, nullptr};
+    const PackBuffer* buffers[3] = {&slot.color, &slot.distance, &slot.rho};
+    const std::size_t floats[3] = {4 * n, n, 2 * n};
+    GLenum err = GL_NO_ERROR;
+    for (int b = 0; b < 3 && err == GL_NO_ERROR; ++b) {
+      mapped[b] = mapForRead(buffers[b]->buffer, floats[b] * sizeof(float));
+      if (mapped[b] == nullptr) err = glGetError();
+    }
+    if (err == GL_NO_ERROR) shade(SurfaceGBufferView{slot.width, slot.height, mapped[0], mapped[2], mapped[1], true}, out);
+    for (int b = 0; b < 3; ++b)
+      if (mapped[b] != nullptr) {
+        glBindBuffer(GL_PIXEL_PACK_BUFFER, buffers[b]->buffer.get());
+        glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+      }
+    if (err != GL_NO_ERROR) return Error{"glMapBufferRange (geometry-buffer PBOs) failed: " + glErrorName(err)};
+  } else {
+    const float* rgba = mapForRead(slot.color.buffer, 4 * n * sizeof(float));
+    if (rgba == nullptr) return Error{"glMapBufferRange (colour PBO) failed: " + glErrorName(glGetError())};
+    flipRgbaToRgb(rgba, w, h, out.rgb.data());
+    glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+    const float* dist = mapForRead(slot.distance.buffer, n * sizeof(float));
+    if (dist == nullptr) return Error{"glMapBufferRange (distance PBO) failed: " + glErrorName(glGetError())};
+    for (std::size_t j = 0; j < h; ++j)
+      std::memcpy(out.distance.data() + w * j, dist + w * (h - 1 - j), w * sizeof(float));
+    glUnmapBuffer(GL_PIXEL_PACK_BUFFER);
+  }
   if (airlight) {
     if (!slot.hasAirlight) return Error{"GlSurfacePass: the frame was submitted without the GPU airlight stage"};
     airlight->resize(3 * n);

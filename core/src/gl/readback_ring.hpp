@@ -17,9 +17,12 @@
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <fogbeam/render/surface_shading.hpp>
+
 #include <array>
 #include <cstddef>
 #include <deque>
+#include <functional>
 #include <vector>
 
 namespace fogbeam::gl {
@@ -46,6 +49,7 @@ class ReadbackRing {
   /// What endFrame() reads: the framebuffers with the frame's attachments, and its figures.
   struct Reads {
     GLuint surfaceFbo = 0;   ///< colour attachment 0 (RGBA32F), distance attachment 1 (R32F)
+    bool gbuffer = false;    ///< attachment 0 holds (n, ρ red) and attachment 2 (RG32F) ρ green, blue
     GLuint airlightFbo = 0;  ///< airlight attachment 0 (RGBA32F), or 0: the stage did not run
     int width = 0, height = 0;
     std::size_t triangles = 0;  ///< glTF triangles drawn (reported by collect())
@@ -56,11 +60,15 @@ class ReadbackRing {
   /// The CPU time the latest queued frame took to submit [ms] (reported by collect()).
   void setSubmitMs(double ms) noexcept;
 
+  /// Lights a geometry buffer into `out` (SurfaceShader::shade with the frame's prepared lamps).
+  using Shade = std::function<void(const SurfaceGBufferView&, SurfaceBuffers&)>;
   /// Waits for the oldest queued frame (at most 30 s), copies its colour and distance into
-  /// `out` and, when `airlight` is given, its airlight (3 floats per pixel, cd/m²; an error when
+  /// `out` (a geometry-buffer frame: hands the mapped buffers to `shade`, which fills `out`)
+  /// and, when `airlight` is given, its airlight (3 floats per pixel, cd/m²; an error when
   /// the frame was recorded without it); fills the readback, submit, triangle and timer figures
   /// of `stats`. Precondition: !empty().
-  [[nodiscard]] Status collect(SurfaceBuffers& out, std::vector<float>* airlight, GlSurfaceStats& stats);
+  [[nodiscard]] Status collect(SurfaceBuffers& out, std::vector<float>* airlight, GlSurfaceStats& stats,
+                               const Shade& shade = {});
 
  private:
   // A pixel-pack buffer and the bytes it holds (storage kept while the size stays the same).
@@ -69,10 +77,11 @@ class ReadbackRing {
     std::size_t bytes = 0;
   };
   struct Slot {
-    PackBuffer color, distance, airlight;
+    PackBuffer color, distance, airlight, rho;
     Query surfaceTimer, airlightTimer;
     Sync fence;
     bool hasAirlight = false;
+    bool gbuffer = false;
     int width = 0, height = 0;
     double submitMs = 0.0;
     std::size_t triangles = 0;

@@ -16,7 +16,9 @@
 #include "lamp_upload.hpp"
 #include "readback_ring.hpp"
 #include "shader_library.hpp"
+#include <fogbeam/render/surface_shading.hpp>
 #include <fogbeam/scene/gltf_mesh.hpp>
+#include <fogbeam/util/thread_pool.hpp>
 
 #include <glm/gtc/type_ptr.hpp>
 
@@ -26,7 +28,9 @@
 #include <cstddef>
 #include <cstdio>
 #include <limits>
+#include <deque>
 #include <optional>
+#include <utility>
 
 namespace fogbeam {
 
@@ -80,8 +84,12 @@ glm::mat4 clipFromCameraRel(const Camera& cam) {
 struct GlSurfacePass::Impl {
   // The context, first: it is destroyed after every GL object below (gl_object.hpp). The
   // constructor runs with it current.
-  Impl(std::unique_ptr<gl::EglContext> context, std::string desc, bool timerQueries)
-      : egl(std::move(context)), description(std::move(desc)), timerQuery(timerQueries), readback(timerQueries) {}
+  Impl(std::unique_ptr<gl::EglContext> context, std::string desc, bool timerQueries, bool shadeOnCpu,
+       unsigned shadingThreads)
+      : egl(std::move(context)), description(std::move(desc)), timerQuery(timerQueries), cpuShading(shadeOnCpu),
+        readback(timerQueries) {
+    if (cpuShading) shadePool = std::make_unique<ThreadPool>(shadingThreads);
+  }
   // Makes the context current so that the members' destructors delete their objects in it.
   ~Impl() {
     if (egl) (void)egl->makeCurrent();
@@ -93,6 +101,14 @@ struct GlSurfacePass::Impl {
   std::string description;
   GlSurfaceStats stats;
   bool timerQuery = false;
+  // Deferred shading on the CPU (GlOptions::shading): the shaders write a geometry buffer
+  // (normal and ρ red in the colour attachment, ρ green and blue in rhoTex, the distance) and
+  // collect() lights it with `shader` on `shadePool`, from the lamps and camera of the frame's
+  // submit() (shadeFrames, in submission order like the readback ring's slots).
+  bool cpuShading = false;
+  SurfaceShader shader;
+  std::unique_ptr<ThreadPool> shadePool;
+  std::deque<kernels::ShadeFrame> shadeFrames;
 
   // The surface draws: programs and their uniform locations.
   gl::Program planeProgram, meshProgram;
@@ -102,15 +118,16 @@ struct GlSurfacePass::Impl {
 
   // Geometry: the full-screen triangle has no attributes; the glTF mesh (positions relative to
   // its anchor, float) and the planes (double, relative to the eye).
-  gl::VertexArray emptyVao = gl::genVertexArray(), meshVao = gl::genVertexArray();
-  gl::Buffer meshVbo = gl::genBuffer(), planeSsbo = gl::genBuffer();
+  gl::VertexArray emptyVao = gl::genVertexArray(), meshVao = gl::genVertexArray(), bodyVao = gl::genVertexArray();
+  gl::Buffer meshVbo = gl::genBuffer(), planeSsbo = gl::genBuffer(), bodyVbo = gl::genBuffer();
+  GLsizei bodyVertexCount = 0;  // the scene's body quads (the bonnet), camera-relative, this frame
   GLsizei meshVertexCount = 0;
   Vec3 meshAnchor_m{0.0};
   std::optional<std::string> meshPath;  // the glTF file currently in meshVbo
 
   // Render targets: colour L_s (RGBA32F), distance d (R32F), depth 1/(1 + d) (DEPTH32F).
   gl::Framebuffer fbo = gl::genFramebuffer();
-  gl::Texture colorTex, distanceTex;
+  gl::Texture colorTex, distanceTex, rhoTex;
   gl::Renderbuffer depthRb;
   int fbWidth = 0, fbHeight = 0;
 
@@ -120,10 +137,11 @@ struct GlSurfacePass::Impl {
 
   // Links the surface programs and describes the mesh's vertex layout.
   Status init() {
-    auto plane = gl::linkProgram("surface_fullscreen.vert", "surface_plane.frag");
+    const std::string defines = cpuShading ? "#define FOGBEAM_GBUFFER 1\n" : "";
+    auto plane = gl::linkProgram("surface_fullscreen.vert", "surface_plane.frag", defines);
     if (!plane) return plane.error();
     planeProgram = std::move(plane).value();
-    auto mesh = gl::linkProgram("surface_mesh.vert", "surface_mesh.frag");
+    auto mesh = gl::linkProgram("surface_mesh.vert", "surface_mesh.frag", defines);
     if (!mesh) return mesh.error();
     meshProgram = std::move(mesh).value();
     const GLuint pp = planeProgram.get(), mp = meshProgram.get();
@@ -139,15 +157,19 @@ struct GlSurfacePass::Impl {
     meshAmbient = glGetUniformLocation(mp, "uAmbient");
     meshLampCount = glGetUniformLocation(mp, "uLampCount");
 
-    glBindVertexArray(meshVao.get());
-    glBindBuffer(GL_ARRAY_BUFFER, meshVbo.get());
-    constexpr auto stride = static_cast<GLsizei>(sizeof(MeshVertex));
-    glEnableVertexAttribArray(0);
-    glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, position)));
-    glEnableVertexAttribArray(1);
-    glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, normal)));
-    glEnableVertexAttribArray(2);
-    glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, reflectance)));
+    // The glTF mesh and the body quads share the vertex layout (MeshVertex) and the program.
+    for (const auto& [vao, vbo] : {std::pair{meshVao.get(), meshVbo.get()}, std::pair{bodyVao.get(), bodyVbo.get()}}) {
+      glBindVertexArray(vao);
+      glBindBuffer(GL_ARRAY_BUFFER, vbo);
+      constexpr auto stride = static_cast<GLsizei>(sizeof(MeshVertex));
+      glEnableVertexAttribArray(0);
+      glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, position)));
+      glEnableVertexAttribArray(1);
+      glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<const void*>(offsetof(MeshVertex, normal)));
+      glEnableVertexAttribArray(2);
+      glVertexAttribPointer(2, 3, GL_FLOAT, GL_FALSE, stride,
+                            reinterpret_cast<const void*>(offsetof(MeshVertex, reflectance)));
+    }
     glBindVertexArray(0);
     if (std::string e = gl::glErrors("GL surface pass set-up"); !e.empty()) return Error{e};
     return Ok{};
@@ -167,12 +189,18 @@ struct GlSurfacePass::Impl {
     distanceTex = gl::genTexture();
     glBindTexture(GL_TEXTURE_2D, distanceTex.get());
     glTexStorage2D(GL_TEXTURE_2D, 1, GL_R32F, w, h);
+    if (cpuShading) {
+      rhoTex = gl::genTexture();
+      glBindTexture(GL_TEXTURE_2D, rhoTex.get());
+      glTexStorage2D(GL_TEXTURE_2D, 1, GL_RG32F, w, h);
+    }
     depthRb = gl::genRenderbuffer();
     glBindRenderbuffer(GL_RENDERBUFFER, depthRb.get());
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo.get());
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, colorTex.get(), 0);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, distanceTex.get(), 0);
+    if (cpuShading) glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT2, GL_TEXTURE_2D, rhoTex.get(), 0);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depthRb.get());
     const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
     if (status != GL_FRAMEBUFFER_COMPLETE) {
@@ -225,13 +253,37 @@ struct GlSurfacePass::Impl {
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, planeSsbo.get());
   }
 
+  // The scene's body quads (the bonnet) as two triangles each, relative to the eye (so that the
+  // mesh program draws them with a zero anchor), into bodyVbo.
+  void uploadBody(const Scene& scene) {
+    std::vector<MeshVertex> v;
+    for (const Quad& q : scene.body) {
+      const Vec3 c = q.corner_m - scene.camera.position_m;
+      const Vec3 n = glm::normalize(glm::cross(q.edge_u_m, q.edge_v_m));
+      const Vec3 corners[4] = {c, c + q.edge_u_m, c + q.edge_u_m + q.edge_v_m, c + q.edge_v_m};
+      for (int k : {0, 1, 2, 0, 2, 3}) {
+        MeshVertex mv{};
+        for (int a = 0; a < 3; ++a) {
+          mv.position[a] = static_cast<float>(corners[k][a]);
+          mv.normal[a] = static_cast<float>(n[a]);
+          mv.reflectance[a] = static_cast<float>(q.reflectance);
+        }
+        v.push_back(mv);
+      }
+    }
+    bodyVertexCount = static_cast<GLsizei>(v.size());
+    if (v.empty()) return;
+    glBindBuffer(GL_ARRAY_BUFFER, bodyVbo.get());
+    glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_DYNAMIC_DRAW);
+  }
+
   // Clears the targets to the sky and draws the planes and the mesh, bracketed by `timer`
   // (GL_TIME_ELAPSED; 0: none).
   void drawSurfaces(const Scene& scene, GLuint timer) {
     const Camera& cam = scene.camera;
     glBindFramebuffer(GL_FRAMEBUFFER, fbo.get());
-    const GLenum drawBuffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
-    glDrawBuffers(2, drawBuffers);
+    const GLenum drawBuffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+    glDrawBuffers(cpuShading ? 3 : 2, drawBuffers);
     glViewport(0, 0, cam.width, cam.height);
     glDisable(GL_CULL_FACE);
     glDisable(GL_BLEND);
@@ -244,6 +296,11 @@ struct GlSurfacePass::Impl {
     const float farDepth = 0.0f;
     glClearBufferfv(GL_COLOR, 0, skyColor);
     glClearBufferfv(GL_COLOR, 1, skyDistance);
+    if (cpuShading) {  // sky: no surface; the CPU writes I_a where the distance is +inf
+      const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+      glClearBufferfv(GL_COLOR, 0, zero);
+      glClearBufferfv(GL_COLOR, 2, zero);
+    }
     glClearBufferfv(GL_DEPTH, 0, &farDepth);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, lamps.profileTexture());
@@ -251,7 +308,9 @@ struct GlSurfacePass::Impl {
     if (timer != 0) glBeginQuery(GL_TIME_ELAPSED, timer);
     const auto kt = static_cast<float>(scene.fog.extinction_per_m);
     const auto nLamps = static_cast<GLint>(scene.lamps.size());
-    if (!scene.planes.empty()) {
+    // With shading on the CPU the planes are cast there too (in double, SurfaceShader), so GL
+    // draws them only for the GPU airlight stage, which reads their distances here.
+    if (!scene.planes.empty() && (!cpuShading || airlight.enabled())) {
       glUseProgram(planeProgram.get());
       glUniformMatrix3dv(planeWorldFromCamera, 1, GL_FALSE, glm::value_ptr(cam.worldFromCamera));
       // (f, cx, H − cy): the principal point in GL window coordinates (y up from the bottom).
@@ -276,6 +335,19 @@ struct GlSurfacePass::Impl {
       glBindVertexArray(meshVao.get());
       glDrawArrays(GL_TRIANGLES, 0, meshVertexCount);
     }
+    // The body quads (the bonnet): with shading on the CPU they are cast there, like the
+    // planes, and drawn here only for the GPU airlight stage's distances.
+    if (bodyVertexCount > 0 && (!cpuShading || airlight.enabled())) {
+      glUseProgram(meshProgram.get());
+      const glm::vec3 zero(0.0f);
+      glUniform3fv(meshAnchor, 1, glm::value_ptr(zero));
+      glUniformMatrix4fv(meshClip, 1, GL_FALSE, glm::value_ptr(clipFromCameraRel(cam)));
+      glUniform1f(meshExtinction, kt);
+      glUniform1f(meshAmbient, ia);
+      glUniform1i(meshLampCount, nLamps);
+      glBindVertexArray(bodyVao.get());
+      glDrawArrays(GL_TRIANGLES, 0, bodyVertexCount);
+    }
     if (timer != 0) glEndQuery(GL_TIME_ELAPSED);
     glBindVertexArray(0);
   }
@@ -295,13 +367,15 @@ struct GlSurfacePass::Impl {
     }
     lamps.uploadLamps(scene);
     uploadPlanes(scene);
+    uploadBody(scene);
 
     const gl::ReadbackRing::Timers timers = readback.beginFrame();
     drawSurfaces(scene, timers.surface);
     if (airlight.enabled())
       airlight.draw(scene, {lamps.profileTexture(), distanceTex.get(), emptyVao.get(), timers.airlight});
-    readback.endFrame({fbo.get(), airlight.enabled() ? airlight.framebuffer() : 0u, cam.width, cam.height,
-                       static_cast<std::size_t>(meshVertexCount) / 3});
+    if (cpuShading) shader.prepare(scene, shadeFrames.emplace_back());  // in step with the ring's slots
+    readback.endFrame({fbo.get(), cpuShading, airlight.enabled() ? airlight.framebuffer() : 0u, cam.width,
+                       cam.height, static_cast<std::size_t>(meshVertexCount) / 3});
     if (std::string e = gl::glErrors("surface pass draw/readback"); !e.empty()) return Error{e};
     readback.setSubmitMs(msSince(t0));
     if (!timerQuery) stats.surface_ms = 0.0;
@@ -311,7 +385,18 @@ struct GlSurfacePass::Impl {
   Status collect(SurfaceBuffers& out, std::vector<float>* airlightOut) {
     if (readback.empty()) return Error{"GlSurfacePass::collect: no frame submitted"};
     if (Status s = egl->makeCurrent(); !s) return s;
-    return readback.collect(out, airlightOut, stats);
+    if (!cpuShading) return readback.collect(out, airlightOut, stats);
+    // The frame's lamps and camera leave the queue whatever collect() returns: its slot has.
+    const kernels::ShadeFrame frame = std::move(shadeFrames.front());
+    shadeFrames.pop_front();
+    double shadeMs = 0.0;
+    Status st = readback.collect(out, airlightOut, stats, [&](const SurfaceGBufferView& g, SurfaceBuffers& o) {
+      const auto t0 = Clock::now();
+      shader.shade(frame, g, o, shadePool.get());
+      shadeMs = msSince(t0);
+    });
+    stats.shade_ms = shadeMs;
+    return st;
   }
 
   // Collects (and drops) every frame still in flight, so that the next collect() returns the
@@ -344,7 +429,17 @@ Result<std::unique_ptr<GlSurfacePass>> GlSurfacePass::create(const GlOptions& op
     glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS);
     glDebugMessageCallback(debugCallback, nullptr);
   }
-  auto impl = std::make_unique<Impl>(std::move(ctx).value(), std::move(description), timerQuery);
+  // Shading on the CPU where the rasteriser is software (docs/surface_pass.md, "Shading on the
+  // CPU"): there a fragment shader costs more per lamp and pixel than SIMD code on the same cores.
+  const std::string renderer = str(GL_RENDERER);
+  const bool software = renderer.find("llvmpipe") != std::string::npos ||
+                        renderer.find("softpipe") != std::string::npos ||
+                        renderer.find("swrast") != std::string::npos || renderer.find("SWR") != std::string::npos;
+  const bool cpuShading =
+      options.shading == SurfaceShading::Cpu || (options.shading == SurfaceShading::Auto && software);
+  description += cpuShading ? " | shading on the CPU" : " | shading in GL";
+  auto impl = std::make_unique<Impl>(std::move(ctx).value(), std::move(description), timerQuery, cpuShading,
+                                     options.shading_threads);
   if (Status s = impl->init(); !s) return s.error();
   return std::unique_ptr<GlSurfacePass>(new GlSurfacePass(std::move(impl)));
 }
@@ -375,6 +470,9 @@ Status GlSurfacePass::setAirlight(const std::optional<GpuAirlightOptions>& optio
 }
 
 bool GlSurfacePass::airlightEnabled() const noexcept { return impl_->airlight.enabled(); }
+SurfaceShading GlSurfacePass::shading() const noexcept {
+  return impl_->cpuShading ? SurfaceShading::Cpu : SurfaceShading::Gpu;
+}
 std::string GlSurfacePass::description() const { return impl_->description; }
 const GlSurfaceStats& GlSurfacePass::stats() const noexcept { return impl_->stats; }
 

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <string>
 
 namespace fogbeam {
 
@@ -15,7 +17,7 @@ namespace {
 // Radial tables over the half-chord s = |ω − e|/2 = sin(θ/2) between a pixel's ray ω and the
 // lamp's direction e: nodes s_i = (i / (n − 1))², dense near the lamp (θ of the first node: 2e-5
 // rad at n = 512), every θ up to π.
-constexpr int kNodes = 512;
+using lamp_fx::kNodes;
 double sOfNode(int i) {
   const double u = static_cast<double>(i) / (kNodes - 1);
   return u * u;
@@ -126,7 +128,187 @@ struct LampEffects::Tables {
   };
   std::vector<Radial> glow, glare;
   std::vector<float> glowTables;  // kNodes per glowing lamp
+  // Per scene lamp: its glow curve for the last (R, fog) it was computed for. The curve (an APSF
+  // series and the F table at 512 angles, ~0.1 ms and a few allocations) depends on nothing else,
+  // so a lamp that keeps its distance in a steady fog reuses it (steady frames allocate nothing).
+  struct CurveCache {
+    bool valid = false, ok = false;
+    double R = 0.0, kt = 0.0, albedo = 0.0;
+    PhaseIdentity phase{};
+    double scale = 0.0, single_flux = 0.0, multiple_flux = 0.0;
+    int terms = 0;
+    std::vector<double> glow;  // kNodes
+  };
+  std::vector<CurveCache> curves;
+  // The fast path's buffers of one layer (grown only: steady frames allocate nothing).
+  struct Layer {
+    std::vector<lamp_fx::KernelLamp> lamps;
+    std::vector<float> grid, hmid, vmid, centre;  // per lamp gw × gh: nodes, edge midpoints, cell centres
+    std::vector<float> combined;                  // 3 planes gw × gh
+    std::vector<float> floor;                     // per lamp: the check's absolute floor (table units)
+    std::vector<std::uint8_t> exact;              // tiles × lamps
+    std::vector<float> imageX, imageY;            // per lamp: its image point, pixels (centre coordinates)
+    int gw = 0, gh = 0;
+  };
+  Layer glowLayer, glareLayer;
 };
+
+namespace {
+
+// The fast path's accuracy control (docs/airlight.md, "Cost of glow and glare"). A tile (the
+// 8 × 8 pixels between four grid nodes) interpolates lamp i bilinearly unless
+//  * the lamp's image point lies within kNearCells cells of it (the glare's 1/θ³ and the
+//    tables' steep first nodes: no smoothness to rely on), or
+//  * the interpolation misses the lamp's table, evaluated exactly at the tile's centre and its
+//    four edge midpoints, by more than kCheckTolerance × max(the smallest of those values and
+//    the four corners', floor_i). For a smooth function the bilinear error is largest at the
+//    centre, (h²/8)(F_xx + F_yy), and at the edge midpoints it is each direction's part
+//    (h²/8) F_xx, so the check measures the error itself, not a bound; near a kink of the glow
+//    curve (where it leaves 0, 7–8° from a lamp) it sees the interpolant's spill-over.
+// Every lamp's share is ≥ 0 and so is every weight, so a relative error ≤ τ per lamp is ≤ τ of
+// the sum at every pixel. floor_i: the glare has none (its table is > 0 at every angle: the
+// check is relative everywhere); the glow's is kGlowFloor × the lamp's peak (its curve is 0
+// near the lamp, where only an absolute error makes sense).
+constexpr float kCheckTolerance = 2.5e-3f;
+constexpr float kGlowFloor = 1e-4f;
+constexpr float kNearCells = 2.0f;
+
+struct FastJob {
+  LampEffects::Tables::Layer* layer;
+  const float* distance;  // nullptr: weights 1 (glare)
+  float* out;
+  int width, height;
+  float f, cx, cy, maxDistance;
+};
+
+// Pass 1, grid row r: each lamp's table at the nodes, edge midpoints and cell centres of row
+// r, and the nodes' colour-weighted sum (the combined grid).
+void gridRow(const FastJob& J, std::size_t r) {
+  using lamp_fx::kCell;
+  auto& L = *J.layer;
+  const std::size_t gw = static_cast<std::size_t>(L.gw), plane = gw * static_cast<std::size_t>(L.gh);
+  const float y0 = static_cast<float>(kCell * r) + 0.5f, y1 = y0 + 0.5f * kCell;
+  const int count = L.gw;
+  for (std::size_t l = 0; l < L.lamps.size(); ++l) {
+    const lamp_fx::KernelLamp& k = L.lamps[l];
+    const std::size_t o = l * plane + r * gw;
+    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f, kCell, y0, count, L.grid.data() + o);
+    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y0, count, L.hmid.data() + o);
+    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f, kCell, y1, count, L.vmid.data() + o);
+    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y1, count, L.centre.data() + o);
+  }
+  for (int ch = 0; ch < 3; ++ch) {
+    float* dst = L.combined.data() + static_cast<std::size_t>(ch) * plane + r * gw;
+    std::fill(dst, dst + gw, 0.0f);
+    for (std::size_t l = 0; l < L.lamps.size(); ++l) {
+      const float col = L.lamps[l].color[ch];
+      const float* g = L.grid.data() + l * plane + r * gw;
+      for (std::size_t c = 0; c < gw; ++c) dst[c] += col * g[c];
+    }
+  }
+}
+
+// Pass 2, tile row r: the tiles' flags (above), then the pixel rows 8r … 8r + 7.
+void tileRow(const FastJob& J, std::size_t r) {
+  using lamp_fx::kCell;
+  auto& L = *J.layer;
+  const std::size_t gw = static_cast<std::size_t>(L.gw), plane = gw * static_cast<std::size_t>(L.gh);
+  const std::size_t nl = L.lamps.size(), tilesW = gw - 1;
+  const float margin = kNearCells * kCell;
+  const float yLo = static_cast<float>(kCell * r) + 0.5f, yHi = yLo + kCell - 1.0f;
+  for (std::size_t c = 0; c < tilesW; ++c) {
+    std::uint8_t* flags = L.exact.data() + (r * tilesW + c) * nl;
+    const float xLo = static_cast<float>(kCell * c) + 0.5f, xHi = xLo + kCell - 1.0f;
+    for (std::size_t l = 0; l < nl; ++l) {
+      const float ix = L.imageX[l], iy = L.imageY[l];
+      if (ix >= xLo - margin && ix <= xHi + margin && iy >= yLo - margin && iy <= yHi + margin) {
+        flags[l] = 1;
+        continue;
+      }
+      const std::size_t o = l * plane, n00 = o + r * gw + c, n10 = n00 + 1, n01 = n00 + gw, n11 = n01 + 1;
+      const float g00 = L.grid[n00], g10 = L.grid[n10], g01 = L.grid[n01], g11 = L.grid[n11];
+      const float ctr = L.centre[n00], top = L.hmid[n00], bottom = L.hmid[n01], left = L.vmid[n00],
+                  right = L.vmid[n10];
+      const float err = std::max({std::abs(ctr - 0.25f * (g00 + g10 + g01 + g11)), std::abs(top - 0.5f * (g00 + g10)),
+                                  std::abs(bottom - 0.5f * (g01 + g11)), std::abs(left - 0.5f * (g00 + g01)),
+                                  std::abs(right - 0.5f * (g10 + g11))});
+      const float lo = std::min({g00, g10, g01, g11, ctr, top, bottom, left, right});
+      flags[l] = err > kCheckTolerance * std::max(lo, L.floor[l]) ? 1 : 0;
+    }
+  }
+  lamp_fx::LayerRow row;
+  row.lamps = L.lamps.data();
+  row.nLamps = static_cast<int>(nl);
+  row.combined = L.combined.data();
+  row.exact = L.exact.data();
+  row.gw = L.gw;
+  row.gh = L.gh;
+  row.width = J.width;
+  row.f = J.f;
+  row.cx = J.cx;
+  row.cy = J.cy;
+  row.max_distance = J.maxDistance;
+  const int j1 = std::min(static_cast<int>(kCell * (r + 1)), J.height);
+  for (int j = static_cast<int>(kCell * r); j < j1; ++j) {
+    const std::size_t off = static_cast<std::size_t>(j) * static_cast<std::size_t>(J.width);
+    row.j = j;
+    row.distance = J.distance ? J.distance + off : nullptr;
+    row.out = J.out + 3 * off;
+    lamp_fx::fillRow(row);
+  }
+}
+
+// The fast path for one layer (header comment): grid, flags and rows on the pool.
+void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector<LampEffects::Tables::Radial>& lamps,
+              const Camera& cam, double f, const Vec2& c, const float* distance, float floorFraction,
+              std::vector<float>& out) {
+  using lamp_fx::kCell;
+  const std::size_t n = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);
+  out.resize(3 * n);  // every pixel is written below
+  if (lamps.empty() || n == 0) {
+    std::fill(out.begin(), out.end(), 0.0f);
+    return;
+  }
+  L.gw = (cam.width - 1) / kCell + 2;
+  L.gh = (cam.height - 1) / kCell + 2;
+  const std::size_t nl = lamps.size(), plane = static_cast<std::size_t>(L.gw) * static_cast<std::size_t>(L.gh);
+  L.lamps.resize(nl);
+  L.grid.resize(nl * plane);
+  L.hmid.resize(nl * plane);
+  L.vmid.resize(nl * plane);
+  L.centre.resize(nl * plane);
+  L.combined.resize(3 * plane);
+  L.floor.resize(nl);
+  L.imageX.resize(nl);
+  L.imageY.resize(nl);
+  L.exact.resize(static_cast<std::size_t>(L.gw - 1) * static_cast<std::size_t>(L.gh - 1) * nl);
+  float maxDistance = 0.0f;
+  for (std::size_t l = 0; l < nl; ++l) {
+    const LampEffects::Tables::Radial& rad = lamps[l];
+    lamp_fx::KernelLamp& k = L.lamps[l];
+    for (int a = 0; a < 3; ++a) {
+      k.e[a] = rad.e[a];
+      k.color[a] = rad.color[a];
+    }
+    k.half_distance = 0.5f * rad.distance;
+    k.inv_half_distance = 2.0f / rad.distance;
+    k.table = rad.table;
+    k.grid = L.grid.data() + l * plane;
+    L.floor[l] = floorFraction * *std::max_element(rad.table, rad.table + kNodes);
+    // Image point (pixel-centre coordinates, as the evaluation's i + ½): x = c_x − f e_y/e_x.
+    const bool ahead = rad.e[0] > 0.0f;
+    L.imageX[l] = ahead ? static_cast<float>(c.x - f * static_cast<double>(rad.e[1] / rad.e[0])) : -1e30f;
+    L.imageY[l] = ahead ? static_cast<float>(c.y - f * static_cast<double>(rad.e[2] / rad.e[0])) : -1e30f;
+    maxDistance = std::max(maxDistance, rad.distance);
+  }
+  FastJob job{&L, distance, out.data(), cam.width, cam.height, static_cast<float>(f), static_cast<float>(c.x),
+              static_cast<float>(c.y), maxDistance};
+  const FastJob* jp = &job;
+  pool.parallelFor(static_cast<std::size_t>(L.gh), [jp](std::size_t r) { gridRow(*jp, r); });
+  pool.parallelFor(static_cast<std::size_t>(L.gh - 1), [jp](std::size_t r) { tileRow(*jp, r); });
+}
+
+}  // namespace
 
 Result<LampEffects> LampEffects::build(const Scene& scene, const GlowOptions& glow, const GlareOptions& glare,
                                        std::shared_ptr<ThreadPool> pool) {
@@ -169,7 +351,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   const Mat3 camFromWorld = glm::transpose(cam.worldFromCamera);
   const double f = cam.focalLengthPixels();
   const Vec2 c = cam.principalPoint();
-  report.lamps.clear();
+  std::size_t nReport = 0;  // report.lamps' elements are reused (their names keep their storage)
   report.eye_illuminance_lx = report.veiling_luminance_cd_m2 = 0.0;
   report.glow_seconds = report.glare_seconds = 0.0;
   t.glow.clear();
@@ -185,6 +367,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   if (enabled_.size() < scene.lamps.size()) enabled_.resize(scene.lamps.size(), 1);
   if (t.glowTables.size() < static_cast<std::size_t>(kNodes) * scene.lamps.size())
     t.glowTables.resize(static_cast<std::size_t>(kNodes) * scene.lamps.size());
+  if (t.curves.size() < scene.lamps.size()) t.curves.resize(scene.lamps.size());
 
   // Per lamp: where it is, whether a surface hides it, its light towards the eye.
   const auto tGlow = std::chrono::steady_clock::now();
@@ -201,8 +384,14 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     const double R = glm::length(toLamp);
     if (!(R > 1e-6)) continue;
     const Vec3 eCam = camFromWorld * (toLamp / R);
-    LampEffectsReport::Lamp rep;
-    rep.name = sl.name;
+    if (nReport == report.lamps.size()) report.lamps.emplace_back();
+    LampEffectsReport::Lamp& rep = report.lamps[nReport++];
+    {
+      std::string name = std::move(rep.name);
+      rep = LampEffectsReport::Lamp{};
+      rep.name = std::move(name);
+      rep.name.assign(sl.name);
+    }
     rep.distance_m = R;
     rep.optical_distance = kt * R;
     // The layers carry colour × the profile's values; the report gives luminous figures, the
@@ -248,12 +437,29 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
                                                                glare_.age_years, glare_.pigmentation);
     }
     if (glow_.enabled && rep.visible && rep.optical_distance >= Apsf::minOpticalDistance()) {
-      auto curve = glowCurve(*t.iso, fog, R, kNodes);
-      if (curve) {
-        rep.apsf_terms = curve->terms;
-        rep.glow_scale = curve->scale;
-        const double total = curve->single_flux + curve->multiple_flux;
-        rep.glow_share = total > 0.0 ? curve->multiple_flux / total : 0.0;
+      Tables::CurveCache& cc = t.curves[li];
+      const PhaseIdentity phaseId = phaseIdentity(fog.phase);
+      if (!(cc.valid && cc.R == R && cc.kt == kt && cc.albedo == fog.albedo && cc.phase == phaseId)) {
+        auto curve = glowCurve(*t.iso, fog, R, kNodes);
+        cc.valid = true;
+        cc.R = R;
+        cc.kt = kt;
+        cc.albedo = fog.albedo;
+        cc.phase = phaseId;
+        cc.ok = static_cast<bool>(curve);
+        if (curve) {
+          cc.glow = curve->glow;
+          cc.terms = curve->terms;
+          cc.scale = curve->scale;
+          cc.single_flux = curve->single_flux;
+          cc.multiple_flux = curve->multiple_flux;
+        }
+      }
+      if (cc.ok) {
+        rep.apsf_terms = cc.terms;
+        rep.glow_scale = cc.scale;
+        const double total = cc.single_flux + cc.multiple_flux;
+        rep.glow_share = total > 0.0 ? cc.multiple_flux / total : 0.0;
         const double source = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
         rep.glow_source_cd = luminous * source;
         const double fade = std::clamp((rep.optical_distance - Apsf::minOpticalDistance()) /
@@ -261,7 +467,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
                                        0.0, 1.0);
         float* table = t.glowTables.data() + static_cast<std::size_t>(kNodes) * li;
         for (int i = 0; i < kNodes; ++i) {
-          const double g = fade * source * curve->glow[static_cast<std::size_t>(i)];
+          const double g = fade * source * cc.glow[static_cast<std::size_t>(i)];
           table[i] = static_cast<float>(g);
           rep.glow_peak_cd_m2 = std::max(rep.glow_peak_cd_m2, luminous * g);
         }
@@ -270,10 +476,12 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         t.glow.push_back(rad);
       }
     }
-    report.lamps.push_back(rep);
   }
+  report.lamps.resize(nReport);
 
-  // Per pixel: Σ over lamps of the radial tables at the pixel's half-chord to each lamp.
+  // The exact path (LampEffectsPath::Exact; the layers before the coarse grid, the reference of
+  // the fast path's tests): per pixel, Σ over lamps of the radial tables at the pixel's
+  // half-chord to each lamp.
   auto fill = [&](const std::vector<Tables::Radial>& lamps, bool occlusion, std::vector<float>& out) {
     out.assign(3 * n, 0.0f);
     if (lamps.empty()) return;
@@ -315,12 +523,15 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
       }
     });
   };
-  if (glow_.enabled) fill(t.glow, true, glowOut);
-  else glowOut.clear();
+  const bool fast = path_ == LampEffectsPath::Fast;
+  if (!glow_.enabled) glowOut.clear();
+  else if (fast) fastFill(*pool_, t.glowLayer, t.glow, cam, f, c, surface.distance.data(), kGlowFloor, glowOut);
+  else fill(t.glow, true, glowOut);
   report.glow_seconds = since(tGlow);
   const auto tGlare = std::chrono::steady_clock::now();
-  if (glare_.enabled) fill(t.glare, false, glareOut);
-  else glareOut.clear();
+  if (!glare_.enabled) glareOut.clear();
+  else if (fast) fastFill(*pool_, t.glareLayer, t.glare, cam, f, c, nullptr, 0.0f, glareOut);
+  else fill(t.glare, false, glareOut);
   report.glare_seconds = since(tGlare);
 }
 

@@ -44,27 +44,27 @@ float halfToFloat(std::uint16_t h) noexcept {
   return std::bit_cast<float>(sign | ((e + 112u) << 23) | (m << 13));
 }
 
+namespace pack {
+// pixel_pack_simd.cpp: the loop below as a Highway kernel, byte for byte (the table widened).
+void packRgba8SrgbSimd(const float* rgb, std::size_t n, float gain, const std::int32_t* table, std::uint8_t* out);
+}  // namespace pack
+
 void packRgba8Srgb(const float* rgb, std::size_t n, double exposureEv, std::uint8_t* out) {
   // y = x/(1 + x) ∈ [0, 1) is tabulated at 16384 steps: the sRGB curve's steepest 8-bit step
   // (at black, 1/(255·12.92) ≈ 3e-4 in y) spans five entries, so the table never skips a code.
-  static const std::array<std::uint8_t, 16385> table = [] {
-    std::array<std::uint8_t, 16385> t{};
+  // The definition, per channel: x = max(v, 0)·2^EV, y = x/(1 + x) (1 where x is not finite),
+  // code = table[⌊y·16384 + 0.5⌋]; the SIMD kernel computes exactly that (32-bit entries, for
+  // its gathers).
+  static const std::array<std::int32_t, 16385> table = [] {
+    std::array<std::int32_t, 16385> t{};
     for (std::size_t i = 0; i < t.size(); ++i) {
       const double y = static_cast<double>(i) / 16384.0;
       const double s = y <= 0.0031308 ? 12.92 * y : 1.055 * std::pow(y, 1.0 / 2.4) - 0.055;
-      t[i] = static_cast<std::uint8_t>(std::lround(std::clamp(s, 0.0, 1.0) * 255.0));
+      t[i] = static_cast<std::int32_t>(std::lround(std::clamp(s, 0.0, 1.0) * 255.0));
     }
     return t;
   }();
-  const float gain = static_cast<float>(std::exp2(exposureEv));
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t c = 0; c < 3; ++c) {
-      const float x = std::max(rgb[3 * i + c], 0.0f) * gain;
-      const float y = std::isfinite(x) ? x / (1.0f + x) : 1.0f;
-      out[4 * i + c] = table[static_cast<std::size_t>(y * 16384.0f + 0.5f)];
-    }
-    out[4 * i + 3] = 255;
-  }
+  pack::packRgba8SrgbSimd(rgb, n, static_cast<float>(std::exp2(exposureEv)), table.data(), out);
 }
 
 }  // namespace fogbeam

@@ -10,6 +10,11 @@
 
 #include <fogbeam/render/pixel_pack.hpp>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
 HWY_BEFORE_NAMESPACE();
 namespace fogbeam::pack::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
@@ -39,6 +44,44 @@ void PackRgba16F(const float* rgb, const float* alpha, float alphaConstant, std:
   }
 }
 
+// RGBA8 sRGB (packRgba8Srgb's definition, pixel_pack.cpp): per channel x = max(v, 0)·gain,
+// y = x/(1 + x) (1 where x is not finite), code = table[⌊y·16384 + 0.5⌋] — the same float
+// operations in the same order (no fused multiply-add), so the bytes are the scalar loop's; the
+// table is widened to 32 bits for the gather. Four codes make one little-endian word R, G, B, 255.
+void PackRgba8Srgb(const float* rgb, std::size_t n, float gain, const std::int32_t* table, std::uint8_t* out) {
+  const hn::ScalableTag<float> df;
+  const hn::RebindToSigned<decltype(df)> di;
+  const hn::RebindToUnsigned<decltype(df)> du;
+  const std::size_t N = hn::Lanes(df);
+  const auto g = hn::Set(df, gain), one = hn::Set(df, 1.0f), scale = hn::Set(df, 16384.0f), half = hn::Set(df, 0.5f);
+  const auto inf = hn::Set(df, std::numeric_limits<float>::infinity());
+  auto code = [&](hn::Vec<decltype(df)> v) {
+    const auto x = hn::Mul(hn::Max(v, hn::Zero(df)), g);
+    // false for ±inf and NaN; a NaN input is caught before Max, which gives 0 for it on x86
+    // where std::max(NaN, 0) stays NaN.
+    const auto finite = hn::And(hn::Lt(hn::Abs(x), inf), hn::Eq(v, v));
+    const auto y = hn::IfThenElse(finite, hn::Div(x, hn::Add(one, x)), one);
+    const auto idx = hn::ConvertTo(di, hn::Add(hn::Mul(y, scale), half));  // y ≥ 0: truncation = floor
+    return hn::BitCast(du, hn::GatherIndex(di, table, idx));
+  };
+  std::size_t i = 0;
+  for (; i + N <= n; i += N) {
+    hn::Vec<decltype(df)> r, gr, b;
+    hn::LoadInterleaved3(df, rgb + 3 * i, r, gr, b);
+    const auto word = hn::Or(hn::Or(code(r), hn::ShiftLeft<8>(code(gr))),
+                             hn::Or(hn::ShiftLeft<16>(code(b)), hn::Set(du, 0xFF000000u)));
+    hn::StoreU(word, du, reinterpret_cast<std::uint32_t*>(out + 4 * i));
+  }
+  for (; i < n; ++i) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      const float x = std::max(rgb[3 * i + c], 0.0f) * gain;
+      const float y = std::isfinite(x) ? x / (1.0f + x) : 1.0f;
+      out[4 * i + c] = static_cast<std::uint8_t>(table[static_cast<std::size_t>(y * 16384.0f + 0.5f)]);
+    }
+    out[4 * i + 3] = 255;
+  }
+}
+
 }  // namespace fogbeam::pack::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
@@ -46,6 +89,10 @@ HWY_AFTER_NAMESPACE();
 namespace fogbeam {
 namespace pack {
 HWY_EXPORT(PackRgba16F);
+HWY_EXPORT(PackRgba8Srgb);
+void packRgba8SrgbSimd(const float* rgb, std::size_t n, float gain, const std::int32_t* table, std::uint8_t* out) {
+  HWY_DYNAMIC_DISPATCH(PackRgba8Srgb)(rgb, n, gain, table, out);
+}
 }
 void packRgba16F(const float* rgb, const float* alpha, float alphaConstant, std::size_t n, std::uint16_t* out) {
   HWY_DYNAMIC_DISPATCH(pack::PackRgba16F)(rgb, alpha, alphaConstant, n, out);

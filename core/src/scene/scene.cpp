@@ -37,6 +37,7 @@ constexpr std::array kTopKeys{
     KeySpec{"glow"},
     KeySpec{"glare"},
     KeySpec{"render"},
+    KeySpec{"bonnet"},
 };
 
 constexpr std::array kCameraKeys{
@@ -165,10 +166,20 @@ Scene parseRoot(const toml::table& root, const std::string& name, const std::str
     scene.gltf_path = path;
   }
   scene.effects = parseEffects(top);
+  if (const toml::table* t = top.optTable("bonnet")) scene.body.push_back(parseBonnet(Section(name, *t, "[bonnet]")).quad());
   return scene;
 }
 
 }  // namespace
+
+Quad Bonnet::quad(const Mat3& worldFromFrame, const Vec3& origin_m) const {
+  Quad q;
+  q.corner_m = origin_m + worldFromFrame * Vec3(rear_m, right_m, height_m);
+  q.edge_u_m = worldFromFrame * Vec3(front_m - rear_m, 0.0, 0.0);
+  q.edge_v_m = worldFromFrame * Vec3(0.0, left_m - right_m, 0.0);
+  q.reflectance = reflectance;
+  return q;
+}
 
 std::vector<SceneLamp> expandSceneLamp(const SceneLamp& lamp) {
   if (lamp.aperture.shape == ApertureShape::Point) return {lamp};
@@ -205,6 +216,7 @@ std::vector<config::KeyTable> config::sceneKeyTables() {
        "scene [[lamp]]; service [[ego.lamp]] and [[traffic_class.lamp]] (there without mount, plus their own keys)",
        keyNames({lampKeys()})},
       {"scene.md", "`[[plane]]`: infinite Lambertian plane (any number)", "scene [[plane]]", keyNames({kPlaneKeys})},
+      {"scene.md", "`[bonnet]`: the ego car's bonnet", "scene [bonnet]; service [ego.bonnet]", keyNames({bonnetKeys()})},
       {"scene.md", "`[glow]`", "scene [glow]", keyNames({glowKeys()})},
       {"scene.md", "`[glare]`", "scene [glare]", keyNames({glareKeys()})},
       {"scene.md", "`[render]`", "scene [render]", keyNames({renderKeys()})},

@@ -299,6 +299,33 @@ constexpr std::array<std::string_view, 2> kDevices{"cpu", "gpu"};
 
 }  // namespace
 
+namespace {
+constexpr std::array kBonnetKeys{
+    KeySpec{"rear_m"}, KeySpec{"front_m"}, KeySpec{"left_m"}, KeySpec{"right_m"}, KeySpec{"height_m"}, KeySpec{"reflectance"},
+};
+}  // namespace
+
+std::span<const KeySpec> bonnetKeys() { return kBonnetKeys; }
+
+Bonnet parseBonnet(const Section& s, std::span<const KeySpec> extraKeys) {
+  s.checkKeys(kBonnetKeys, extraKeys);
+  Bonnet b;
+  constexpr Range kAlong{-20.0, 20.0};
+  b.rear_m = s.number("rear_m", kAlong, b.rear_m);
+  b.front_m = s.number("front_m", kAlong, b.front_m);
+  b.left_m = s.number("left_m", kAlong, b.left_m);
+  b.right_m = s.number("right_m", kAlong, b.right_m);
+  b.height_m = s.number("height_m", kAlong, b.height_m);
+  b.reflectance = s.number("reflectance", kUnit, b.reflectance);
+  if (!(b.front_m > b.rear_m))
+    s.fail(s.line(), "front_m", "expected front_m > rear_m, found front_m = " + formatNumber(b.front_m) +
+                                    ", rear_m = " + formatNumber(b.rear_m));
+  if (!(b.left_m > b.right_m))
+    s.fail(s.line(), "left_m", "expected left_m > right_m (y points left), found left_m = " + formatNumber(b.left_m) +
+                                   ", right_m = " + formatNumber(b.right_m));
+  return b;
+}
+
 std::span<const KeySpec> glowKeys() { return kGlowKeys; }
 std::span<const KeySpec> glareKeys() { return kGlareKeys; }
 std::span<const KeySpec> renderKeys() { return kRenderKeys; }

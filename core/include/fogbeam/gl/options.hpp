@@ -11,8 +11,17 @@ enum class GlPlatform {
   Device,       ///< EGL_EXT_platform_device with EGL_EXT_device_enumeration, device `device_index`
 };
 
+/// Where the surface pass lights its pixels (docs/surface_pass.md, "Shading on the CPU").
+enum class SurfaceShading {
+  Auto,  ///< Cpu on a software rasteriser (llvmpipe, softpipe, swrast), else Gpu
+  Gpu,   ///< the fragment shaders light every pixel (forward shading)
+  Cpu,   ///< the shaders write a geometry buffer (normal, ρ, distance); SIMD threads light it
+};
+
 struct GlOptions {
   GlPlatform platform = GlPlatform::Auto;
+  SurfaceShading shading = SurfaceShading::Auto;
+  unsigned shading_threads = 0;  ///< threads lighting the geometry buffer (Cpu shading); 0: every core
   int device_index = 0;     ///< Device only: index into eglQueryDevicesEXT's list
   bool debug_context = false;  ///< request a debug context and log GL debug messages to stderr
 };

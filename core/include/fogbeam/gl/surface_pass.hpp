@@ -8,6 +8,9 @@
 //   L(S) = ρ/π · Σ_lamps colour · I(w) cos(incidence) e^{−K_t r} / r²   (Lambertian, lux → cd/m²)
 //
 // d is the true distance along the pixel's ray (metres, +inf for sky, where L_s = I_a).
+// Lighting runs in the fragment shaders, or — GlOptions::shading, by default on software
+// rasterisers such as llvmpipe — on the CPU from a geometry buffer the shaders write (normal, ρ,
+// distance; SurfaceShader, fogbeam/render/surface_shading.hpp), with the same equation.
 // Geometry: the scene's infinite planes (ray–plane intersection per pixel in a full-screen
 // fragment shader, in double precision) and the triangles of the scene's glTF 2.0 file
 // (rasterised; glTF (x, y, z) → fogbeam (z, x, y), see docs/surface_pass.md). No shadows.
@@ -49,6 +52,7 @@ struct GlSurfaceStats {
   double readback_ms = 0.0;  ///< CPU time waiting for the PBO fence, mapping and copying into SurfaceBuffers
   double airlight_ms = 0.0;  ///< GPU time of the airlight draw (GL_TIME_ELAPSED; 0 without the stage or the query)
   double submit_ms = 0.0;    ///< CPU time to upload lamps/planes and issue the draws and the readback
+  double shade_ms = 0.0;     ///< CPU shading only: time lighting the geometry buffer (within readback_ms)
   std::size_t triangles = 0; ///< glTF triangles drawn
 };
 
@@ -85,10 +89,12 @@ class GlSurfacePass {
   [[nodiscard]] Status render(const Scene& scene, SurfaceBuffers& out, std::vector<float>& airlight);
   [[nodiscard]] Status collect(SurfaceBuffers& out, std::vector<float>& airlight);
 
-  /// "vendor | renderer | version | EGL platform", e.g. "Mesa | llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core
-  /// Profile) Mesa 22.3.6 | surfaceless".
+  /// "vendor | renderer | version | EGL platform | shading", e.g. "Mesa | llvmpipe (LLVM 15.0.6, 256
+  /// bits) | 4.5 (Core Profile) Mesa 22.3.6 | EGL surfaceless | shading on the CPU".
   [[nodiscard]] std::string description() const;
   [[nodiscard]] const GlSurfaceStats& stats() const noexcept;
+  /// Where this pass lights its pixels: Gpu or Cpu (GlOptions::shading, Auto resolved at create()).
+  [[nodiscard]] SurfaceShading shading() const noexcept;
 
   struct Impl;
 

@@ -30,6 +30,33 @@ struct Plane {
   double reflectance = 0.15;   ///< Lambertian albedo ρ ∈ [0, 1]
 };
 
+/// A bounded flat Lambertian rectangle: the points corner + s·edge_u + t·edge_v, s, t ∈ [0, 1]
+/// (metres, world frame). Both sides are surfaces (the one facing the eye is seen).
+struct Quad {
+  Vec3 corner_m{0.0};
+  Vec3 edge_u_m{1.0, 0.0, 0.0};
+  Vec3 edge_v_m{0.0, 1.0, 0.0};
+  double reflectance = 0.05;
+};
+
+/// The ego car's bonnet, seen from the driver's seat: a horizontal plate of the car's body in
+/// the frame the ego's lamps are placed in (a scene file: its world frame, where the vehicle
+/// lamps stand; the service's rig: the vehicle frame, x forward, y left, z up from the ground).
+/// It stops the rays that would reach the road, the fog and the ego's own lamps below its edge —
+/// in the surface pass and, through the distances, the airlight — as a real bonnet hides the
+/// headlamps' images and the first metres of their beams (docs/scene.md, `[bonnet]`).
+struct Bonnet {
+  double rear_m = 0.8;    ///< x of its rear edge (the windscreen's foot)
+  double front_m = 2.3;   ///< x of its front edge
+  double left_m = 0.85;   ///< y of its left edge
+  double right_m = -0.85; ///< y of its right edge
+  double height_m = 0.9;  ///< z of the plate
+  double reflectance = 0.05;  ///< Lambertian ρ (dark paint)
+  /// The plate as a Quad in the bonnet's own frame, then placed by `worldFromFrame` (rotation)
+  /// and `origin_m` (that frame's origin in the world).
+  [[nodiscard]] Quad quad(const Mat3& worldFromFrame = Mat3(1.0), const Vec3& origin_m = Vec3(0.0)) const;
+};
+
 /// A lamp of the scene, with the name shown in reports ("lamp[2]" when unnamed).
 /// Where a lamp is fixed. A vehicle lamp keeps its pose relative to the camera from frame to
 /// frame (the ego car's headlamps seen from the driver's eye), so the image evaluator may cache
@@ -57,6 +84,9 @@ struct Scene {
   Camera camera;
   std::vector<SceneLamp> lamps;  ///< point lamps: parseScene expands lamps with an aperture
   std::vector<Plane> planes;
+  /// The ego vehicle's body seen from the eye (the bonnet, `[bonnet]`): bounded surfaces that
+  /// hide what lies behind them, drawn by every surface renderer.
+  std::vector<Quad> body;
   std::optional<std::string> gltf_path;  ///< absolute or relative to the working directory
   SceneEffects effects;                  ///< [glow], [glare], [render]: all off / CPU by default
 };

@@ -61,6 +61,12 @@ class ProfileCache {
 [[nodiscard]] SceneLamp parseLamp(const Section& s, std::size_t ordinal, const std::string& baseDir,
                                   ProfileCache& cache, std::span<const KeySpec> extraKeys = {});
 
+/// A [bonnet] table (docs/scene.md): the keys, and the bonnet (its defaults where a key is
+/// left out; left of right, rear behind front).
+[[nodiscard]] std::span<const KeySpec> bonnetKeys();
+/// `extraKeys` are accepted and left to the caller (the service's `enabled`).
+[[nodiscard]] Bonnet parseBonnet(const Section& s, std::span<const KeySpec> extraKeys = {});
+
 /// The [glow], [glare] and [render] tables (fogbeam/scene/effects.hpp; docs/scene.md), shared by
 /// scene files and service configs. parseEffects reads whichever of the three `top` holds.
 /// A key left out keeps its value in `fallback` (a service layer's lower layers), except

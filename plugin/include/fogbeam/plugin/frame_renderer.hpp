@@ -102,6 +102,9 @@ struct RenderedFrame {
   bool pending = false;            ///< a fog or bending change is still being tabulated
   /// The host depth frame the frame was rendered on (HostView::frame); 0 = the channel's own view.
   std::uint64_t host_frame = 0;
+  /// rgba8-srgb: the EV the frame was packed at (the channel's exposure_ev, or its automatic
+  /// exposure: ChannelConfig::autoExposure); 0 for the linear formats.
+  double exposure_ev = 0.0;
   /// Glow and glare figures of the lamps that are on (LampEffectsReport: per lamp, eye
   /// illuminance in lx, veiling luminance at the image centre in cd/m², glow and glare
   /// seconds). Empty and 0 when [glow] and [glare] are both off.

@@ -56,10 +56,19 @@ struct ChannelConfig {
   double yaw_deg = 0.0, pitch_deg = 0.0, roll_deg = 0.0;  ///< relative to the vehicle
   std::string format = "rgba8-srgb";  ///< "rgba8-srgb" | "rgba16f-linear" | "rgba16f-overlay"
   bool distance = false;           ///< also publish the f32 distance plane
-  double exposure_ev = 0.0;        ///< rgba8-srgb tone mapping exposure
+  double exposure_ev = 0.0;        ///< rgba8-srgb tone mapping exposure, EV (when not automatic)
+  /// exposure_ev = "auto" (the parser's default for rgba8-srgb channels without depth_from): the
+  /// frame's automatic night exposure, adapted over time (fogbeam/render/exposure.hpp). Applies
+  /// where autoExposure() says so; elsewhere exposure_ev is used.
+  bool exposure_auto = true;
   /// The host's depth channel this view takes its camera and distances from (docs/service.md,
   /// "Host depth"); empty = fogbeam's own view and surface pass.
   std::string depth_from;
+
+  /// Whether the rgba8-srgb frames are packed at the automatic exposure: exposure_auto on an
+  /// rgba8-srgb channel of fogbeam's own view (a depth_from channel's exposure is fixed: the host's
+  /// colour is decoded at it).
+  [[nodiscard]] bool autoExposure() const { return exposure_auto && format == "rgba8-srgb" && depth_from.empty(); }
 };
 
 struct ServiceConfig {
@@ -133,6 +142,8 @@ struct ServiceConfig {
   /// (a bending signal that jitters by less than this does not keep frames per pixel), deg.
   double bending_tolerance_deg = 0.05;
   VehicleRig ego;
+  /// [ego.bonnet]: the ego car's bonnet in the vehicle frame (docs/service.md); empty: none.
+  std::optional<Bonnet> bonnet;
 
   /// By class; class 0 stands in for classes without a rig.
   std::map<std::uint16_t, VehicleRig> traffic;

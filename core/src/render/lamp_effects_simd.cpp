@@ -1,0 +1,177 @@
+// fogbeam — Highway SIMD kernels of the glow and glare layers (lamp_effects.hpp, namespace
+// lamp_fx): the per-lamp radial table at a row of points, and one pixel row of a layer from the
+// coarse grid, with per-pixel evaluation in the tiles flagged exact.
+//
+// Compiled once per SIMD target by hwy/foreach_target.h and chosen at run time
+// (HWY_DYNAMIC_DISPATCH), as airlight_kernels_simd.cpp. The per-pixel arithmetic is the exact
+// path's (LampEffectsPath::Exact, lamp_effects.cpp) in float: the half-chord s = |ω − e|/2, the
+// table coordinate √s (n − 1) and linear interpolation between its nodes;
+// tests/render/test_lamp_effects.cpp compares the layers against the exact path.
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "render/lamp_effects_simd.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+
+#include <hwy/highway.h>
+
+#include <fogbeam/render/lamp_effects.hpp>
+
+#include <algorithm>
+#include <cstring>
+
+HWY_BEFORE_NAMESPACE();
+namespace fogbeam::lamp_fx::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+// At most one cell (kCell = 8 pixels) per vector: a cell's lanes share their grid corners.
+using DF = hn::CappedTag<float, kCell>;
+using DI = hn::RebindToSigned<DF>;
+using VF = hn::Vec<DF>;
+
+// The lamp's radial table at the pixel-centre coordinates (x, y) (pixels, x right, y down; the
+// pixel (i, j) has its centre at i + ½, j + ½): ω the unit ray, s = |ω − e|/2 = sin(θ/2),
+// table coordinate g = √min(s, 1) · (n − 1), linear between nodes (exact path, lamp_effects.cpp).
+HWY_INLINE VF Radial(DF d, const KernelLamp& L, VF x, float b, float f, float cx) {
+  const DI di;
+  const VF a = hn::Div(hn::Sub(hn::Set(d, cx), x), hn::Set(d, f));
+  const VF one = hn::Set(d, 1.0f);
+  const VF inv = hn::Div(one, hn::Sqrt(hn::MulAdd(a, a, hn::Set(d, 1.0f + b * b))));
+  const VF vx = hn::Sub(inv, hn::Set(d, L.e[0]));
+  const VF vy = hn::Sub(hn::Mul(a, inv), hn::Set(d, L.e[1]));
+  const VF vz = hn::Sub(hn::Mul(hn::Set(d, b), inv), hn::Set(d, L.e[2]));
+  const VF s = hn::Mul(hn::Set(d, 0.5f), hn::Sqrt(hn::MulAdd(vx, vx, hn::MulAdd(vy, vy, hn::Mul(vz, vz)))));
+  const VF g = hn::Mul(hn::Sqrt(hn::Min(s, one)), hn::Set(d, static_cast<float>(kNodes - 1)));
+  const auto k0 = hn::Min(hn::ConvertTo(di, g), hn::Set(di, kNodes - 2));  // g ≥ 0: truncation = floor
+  const VF t = hn::Sub(g, hn::ConvertTo(d, k0));
+  const VF t0 = hn::GatherIndex(d, L.table, k0);
+  const VF t1 = hn::GatherIndex(d, L.table + 1, k0);
+  return hn::MulAdd(t, hn::Sub(t1, t0), t0);
+}
+
+void RadialRow(const KernelLamp& L, float f, float cx, float cy, float x0, float dx, float y, int count, float* out) {
+  const DF d;
+  const int N = static_cast<int>(hn::Lanes(d));
+  const float b = (cy - y) / f;
+  const VF step = hn::Mul(hn::Iota(d, 0.0f), hn::Set(d, dx));
+  HWY_ALIGN float tmp[kCell];
+  for (int k = 0; k < count; k += N) {
+    const VF x = hn::Add(hn::Set(d, x0 + dx * static_cast<float>(k)), step);
+    const VF v = Radial(d, L, x, b, f, cx);
+    if (k + N <= count) {
+      hn::StoreU(v, d, out + k);
+    } else {  // the tail: never past `count` (the next grid row may belong to another thread)
+      hn::Store(v, d, tmp);
+      std::memcpy(out + k, tmp, sizeof(float) * static_cast<std::size_t>(count - k));
+    }
+  }
+}
+
+void FillRow(const LayerRow& R) {
+  const DF d;
+  const int N = static_cast<int>(hn::Lanes(d));
+  const int r = R.j / kCell;
+  const float v = static_cast<float>(R.j - r * kCell) / kCell;  // row weight inside the cell
+  const float y = static_cast<float>(R.j) + 0.5f;
+  const float b = (R.cy - y) / R.f;
+  const std::size_t gw = static_cast<std::size_t>(R.gw), plane = gw * static_cast<std::size_t>(R.gh);
+  const int tilesW = R.gw - 1;
+  const VF one = hn::Set(d, 1.0f), zero = hn::Zero(d);
+  const VF lane = hn::Iota(d, 0.0f);
+  HWY_ALIGN float dtmp[kCell];
+  HWY_ALIGN float otmp[3 * kCell];
+  const int cells = (R.width + kCell - 1) / kCell;
+  for (int c = 0; c < cells; ++c) {
+    const int i0 = c * kCell;
+    const int m = std::min(kCell, R.width - i0);
+    const std::uint8_t* flags = R.exact + (static_cast<std::size_t>(r) * static_cast<std::size_t>(tilesW) +
+                                           static_cast<std::size_t>(c)) * static_cast<std::size_t>(R.nLamps);
+    const std::size_t n00 = static_cast<std::size_t>(r) * gw + static_cast<std::size_t>(c);
+    const std::size_t n10 = n00 + 1, n01 = n00 + gw, n11 = n01 + 1;
+    // Weight 1 for every lamp (glare; glow where no surface of the segment is nearer than the
+    // farthest lamp, (d − R/2)/(R/2) ≥ 1): the sum over lamps interpolates as one grid.
+    bool combined = R.distance == nullptr;
+    const float* dist = nullptr;
+    if (!combined) {
+      float dmin = R.distance[i0];
+      for (int k = 1; k < m; ++k) dmin = std::min(dmin, R.distance[i0 + k]);
+      combined = dmin >= R.max_distance;
+      if (m == kCell) {
+        dist = R.distance + i0;
+      } else {
+        for (int k = 0; k < kCell; ++k) dtmp[k] = k < m ? R.distance[i0 + k] : 1e30f;
+        dist = dtmp;
+      }
+    }
+    // Bilinear weights along the row: the row's two grid values a (left), bb (right) at v.
+    auto rowLerp = [&](const float* g, float& a, float& bb) {
+      a = g[n00] + v * (g[n01] - g[n00]);
+      bb = g[n10] + v * (g[n11] - g[n10]);
+    };
+    for (int k0 = 0; k0 < m; k0 += N) {
+      const VF t = hn::Mul(hn::Add(lane, hn::Set(d, static_cast<float>(k0))), hn::Set(d, 1.0f / kCell));
+      const VF x = hn::Add(hn::Add(lane, hn::Set(d, static_cast<float>(i0 + k0))), hn::Set(d, 0.5f));
+      VF acc[3];
+      if (combined) {
+        for (int ch = 0; ch < 3; ++ch) {
+          float a, bb;
+          rowLerp(R.combined + static_cast<std::size_t>(ch) * plane, a, bb);
+          acc[ch] = hn::MulAdd(t, hn::Set(d, bb - a), hn::Set(d, a));
+        }
+        // Lamps evaluated per pixel here: their exact value replaces their interpolated share.
+        for (int l = 0; l < R.nLamps; ++l) {
+          if (!flags[l]) continue;
+          const KernelLamp& L = R.lamps[l];
+          float a, bb;
+          rowLerp(L.grid, a, bb);
+          const VF diff = hn::Sub(Radial(d, L, x, b, R.f, R.cx), hn::MulAdd(t, hn::Set(d, bb - a), hn::Set(d, a)));
+          for (int ch = 0; ch < 3; ++ch) acc[ch] = hn::MulAdd(hn::Set(d, L.color[ch]), diff, acc[ch]);
+        }
+      } else {
+        // Glow with surfaces nearer than a lamp: each lamp's share × its weight
+        // clamp((d − R/2)/(R/2), 0, 1) per pixel (d = +inf: 1).
+        acc[0] = acc[1] = acc[2] = zero;
+        const VF dv = hn::LoadU(d, dist + k0);
+        for (int l = 0; l < R.nLamps; ++l) {
+          const KernelLamp& L = R.lamps[l];
+          const VF w = hn::Min(hn::Max(hn::Mul(hn::Sub(dv, hn::Set(d, L.half_distance)), hn::Set(d, L.inv_half_distance)), zero), one);
+          if (hn::AllTrue(d, hn::Eq(w, zero))) continue;
+          VF val;
+          if (flags[l]) {
+            val = Radial(d, L, x, b, R.f, R.cx);
+          } else {
+            float a, bb;
+            rowLerp(L.grid, a, bb);
+            val = hn::MulAdd(t, hn::Set(d, bb - a), hn::Set(d, a));
+          }
+          const VF wv = hn::Mul(w, val);
+          for (int ch = 0; ch < 3; ++ch) acc[ch] = hn::MulAdd(hn::Set(d, L.color[ch]), wv, acc[ch]);
+        }
+      }
+      if (k0 + N <= m) {
+        hn::StoreInterleaved3(acc[0], acc[1], acc[2], d, R.out + 3 * (i0 + k0));
+      } else {
+        hn::StoreInterleaved3(acc[0], acc[1], acc[2], d, otmp);
+        std::memcpy(R.out + 3 * (i0 + k0), otmp, sizeof(float) * 3 * static_cast<std::size_t>(m - k0));
+      }
+    }
+  }
+}
+
+}  // namespace fogbeam::lamp_fx::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace fogbeam::lamp_fx {
+
+HWY_EXPORT(RadialRow);
+HWY_EXPORT(FillRow);
+
+void radialRow(const KernelLamp& lamp, float f, float cx, float cy, float x0, float dx, float y, int count,
+               float* out) {
+  HWY_DYNAMIC_DISPATCH(RadialRow)(lamp, f, cx, cy, x0, dx, y, count, out);
+}
+
+void fillRow(const LayerRow& row) { HWY_DYNAMIC_DISPATCH(FillRow)(row); }
+
+}  // namespace fogbeam::lamp_fx
+#endif  // HWY_ONCE
