@@ -29,6 +29,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <ctime>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -84,6 +85,13 @@ struct StageStats {
 };
 
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// CPU time of the whole process (every thread, llvmpipe's included), ms.
+double processCpuMs() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return 1e3 * static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_nsec);
+}
 
 struct ErrorStats {
   double median = 0.0, p95 = 0.0, max = 0.0;
@@ -373,6 +381,16 @@ json compositeStage(SizeRun& run) {
   return stats.toJson();
 }
 
+// Glow and glare, both on, with the bench's defaults, on the bench's pool.
+Result<LampEffects> glowAndGlare(SizeRun& run) {
+  GlowOptions glowOpt;
+  glowOpt.enabled = true;
+  GlareOptions glareOpt;
+  glareOpt.enabled = true;
+  auto fxPool = std::shared_ptr<ThreadPool>(&run.pool, [](ThreadPool*) {});  // borrowed: outlives the effects
+  return LampEffects::build(run.scene, glowOpt, glareOpt, fxPool);
+}
+
 // Packing the composite into the shared-memory formats a channel publishes (docs/shm.md): RGBA8
 // sRGB (tone-mapped) and the RGBA16F overlay (in-scattered light + transmittance); the larger
 // of the two is what a channel pays per frame.
@@ -391,15 +409,75 @@ json packStage(SizeRun& run) {
   return {{"rgba8_srgb", rgba8.toJson()}, {"rgba16f_overlay", overlay.toJson()}};
 }
 
+// The whole frame (issue 17) as a channel runs it, stage after stage, o.frames times: the GL
+// surface pass (or the CPU one without GL), the subsampled airlight, glow, glare, the composite
+// and the RGBA8 packing. Per stage the wall time and the cores it kept busy (process CPU time /
+// wall time): where a stage leaves cores idle, overlapping it with another frame's stages (a
+// pipeline) could use them; the frame's total CPU time / the core count bounds what any such
+// overlap can reach.
+json wholeFrameStage(SizeRun& run) {
+  auto fx = glowAndGlare(run);
+  if (!fx) return {{"error", fx.error().message}};
+  SurfaceShader cpuShader;
+  kernels::ShadeFrame cpuFrame;
+  SurfaceBuffers surface;
+  AirlightImage air;
+  FrameLayers layers;
+  std::vector<float> glow, glare;
+  LampEffectsReport rep;
+  std::vector<std::uint8_t> bytes(4 * run.nPixels);
+  const char* names[] = {"surface", "airlight", "glow_glare", "composite", "pack"};
+  constexpr int kStages = 5;
+  std::vector<double> wall[kStages + 1], cpu[kStages + 1];
+  for (int f = 0; f < run.o.frames + 1; ++f) {  // the first frame warms up (buffers sized)
+    double w[kStages], c[kStages];
+    auto stage = [&](int k, auto&& fn) {
+      const double c0 = processCpuMs();
+      const auto t0 = Clock::now();
+      fn();
+      w[k] = msSince(t0);
+      c[k] = processCpuMs() - c0;
+    };
+    bool glOk = true;
+    stage(0, [&] {
+      if (run.gl) glOk = static_cast<bool>(run.gl->render(run.scene, surface));
+      if (!run.gl || !glOk) cpuShader.render(run.scene, cpuFrame, surface, &run.pool);
+    });
+    stage(1, [&] { run.ev.accurate.evaluate(run.scene, surface, SubsamplingOptions{}, air); });
+    stage(2, [&] { fx->evaluate(run.scene, surface, glow, glare, rep); });
+    stage(3, [&] { compositeFrame(run.scene.fog, surface, air, layers, EffectLayers{&glow, &glare}, &run.pool); });
+    stage(4, [&] { packRgba8Srgb(layers.composite.data(), run.nPixels, 0.0, bytes.data()); });
+    if (f == 0) continue;
+    double tw = 0.0, tc = 0.0;
+    for (int k = 0; k < kStages; ++k) {
+      wall[k].push_back(w[k]);
+      cpu[k].push_back(c[k]);
+      tw += w[k];
+      tc += c[k];
+    }
+    wall[kStages].push_back(tw);
+    cpu[kStages].push_back(tc);
+  }
+  auto median = [](std::vector<double> v) {
+    StageStats s;
+    s.ms = std::move(v);
+    return s.median();
+  };
+  json out = json::object();
+  for (int k = 0; k <= kStages; ++k) {
+    const double mw = median(wall[k]), mc = median(cpu[k]);
+    out[k < kStages ? names[k] : "frame"] = {{"median_ms", mw}, {"cpu_ms", mc}, {"cores_busy", mw > 0.0 ? mc / mw : 0.0}};
+  }
+  const double cores = static_cast<double>(run.pool.size());
+  out["cores"] = cores;
+  out["overlap_bound_ms"] = out["frame"]["cpu_ms"].get<double>() / cores;
+  return out;
+}
+
 // Glow and glare (issue 7) on the same frame: their layers' time, and their effect as the
 // share of the composite's light they add (Σ over pixels, luminance) and the glare figures.
 json glowGlareStage(SizeRun& run) {
-  GlowOptions glowOpt;
-  glowOpt.enabled = true;
-  GlareOptions glareOpt;
-  glareOpt.enabled = true;
-  auto fxPool = std::shared_ptr<ThreadPool>(&run.pool, [](ThreadPool*) {});  // borrowed: outlives fx
-  auto fx = LampEffects::build(run.scene, glowOpt, glareOpt, fxPool);
+  auto fx = glowAndGlare(run);
   if (!fx) return {{"error", fx.error().message}};
   StageStats glowStats, glareStats;
   std::vector<float> glowLayer, glareLayer;
@@ -561,6 +639,7 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   stages["composite"] = compositeStage(run);
   r["glow_glare"] = glowGlareStage(run);
   stages["pack"] = packStage(run);
+  r["whole_frame"] = wholeFrameStage(run);
 
   // The frame as `fogbeam render` runs it: the surfaces the airlight stages read (GL when it
   // works), the subsampled airlight, the composite.
@@ -651,8 +730,19 @@ void printSize(const json& r) {
   std::printf("  %-30s %9.2f ms  = %.1f frames/s (%s + airlight subsampled + composite)\n", "pipeline, subsampled",
               r["pipeline_subsampled_ms"].get<double>(), r["fps_subsampled"].get<double>(),
               r["pipeline_surface"].get<std::string>().c_str());
-  std::printf("  %-30s %9.2f ms  = %.1f frames/s (+ glow + glare + packing, one after the other)\n", "whole frame",
+  std::printf("  %-30s %9.2f ms  = %.1f frames/s (the medians above: + glow + glare + packing)\n", "whole frame, by stage",
               r["whole_frame_ms"].get<double>(), r["whole_frame_fps"].get<double>());
+  const json& wf = r["whole_frame"];
+  if (!wf.contains("error")) {
+    std::printf("  %-30s %9.2f ms  = %.1f frames/s, %.2f of %.0f cores busy; stages (ms, cores):",
+                "whole frame, run in sequence", wf["frame"]["median_ms"].get<double>(),
+                1e3 / wf["frame"]["median_ms"].get<double>(), wf["frame"]["cores_busy"].get<double>(),
+                wf["cores"].get<double>());
+    for (const char* k : {"surface", "airlight", "glow_glare", "composite", "pack"})
+      std::printf(" %s %.1f (%.2f)", k, wf[k]["median_ms"].get<double>(), wf[k]["cores_busy"].get<double>());
+    std::printf("; overlapping frames could reach at best %.1f ms (its CPU time / cores)\n",
+                wf["overlap_bound_ms"].get<double>());
+  }
 
   const json& a = r["accuracy"];
   std::printf("  error vs reference on %d random pixels (seed %u), counted where reference > %.0e cd/m2:\n",

@@ -598,6 +598,23 @@ TEST_F(GlSurfacePassTest, PipelinedSubmitCollectReturnsFramesInOrder) {
 // geometry buffer (Cpu) on the shipped bench scene — the road model, its ground plane, the ego's
 // measured low beams and five street lamps, coloured here so that every channel differs.
 
+/// Two passes, one lighting in the shaders and one on the CPU (GlOptions::shading); null without
+/// EGL (skipReason() says why).
+std::pair<std::unique_ptr<GlSurfacePass>, std::unique_ptr<GlSurfacePass>> passesShadingBothWays() {
+  GlOptions gpuOpt, cpuOpt;
+  gpuOpt.shading = SurfaceShading::Gpu;
+  cpuOpt.shading = SurfaceShading::Cpu;
+  auto gpu = GlSurfacePass::create(gpuOpt);
+  auto cpu = GlSurfacePass::create(cpuOpt);
+  if (!gpu || !cpu) {
+    skipReason() = !gpu ? gpu.error().message : cpu.error().message;
+    return {};
+  }
+  EXPECT_EQ((*gpu)->shading(), SurfaceShading::Gpu);
+  EXPECT_EQ((*cpu)->shading(), SurfaceShading::Cpu);
+  return {std::move(gpu).value(), std::move(cpu).value()};
+}
+
 TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
   auto loaded = loadScene(std::string(FOGBEAM_CONFIG_DIR) + "/scenes/bench.toml");
   ASSERT_TRUE(loaded.has_value()) << loaded.error().message;
@@ -608,18 +625,11 @@ TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
   scene.body.clear();  // the bonnet: its own test below (rasterised vs cast, distances within rounding)
   for (std::size_t i = 0; i < scene.lamps.size(); ++i)
     scene.lamps[i].lamp.color = Vec3(1.0, 0.8 + 0.05 * static_cast<double>(i), 0.6);
-  GlOptions gpuOpt, cpuOpt;
-  gpuOpt.shading = SurfaceShading::Gpu;
-  cpuOpt.shading = SurfaceShading::Cpu;
-  auto gpu = GlSurfacePass::create(gpuOpt);
-  if (!gpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << gpu.error().message;
-  auto cpu = GlSurfacePass::create(cpuOpt);
-  ASSERT_TRUE(cpu.has_value()) << cpu.error().message;
-  EXPECT_EQ((*gpu)->shading(), SurfaceShading::Gpu);
-  EXPECT_EQ((*cpu)->shading(), SurfaceShading::Cpu);
+  auto [gpu, cpu] = passesShadingBothWays();
+  if (!gpu || !cpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << skipReason();
   SurfaceBuffers a, b;
-  ASSERT_TRUE((*gpu)->render(scene, a).has_value());
-  ASSERT_TRUE((*cpu)->render(scene, b).has_value());
+  ASSERT_TRUE(gpu->render(scene, a).has_value());
+  ASSERT_TRUE(cpu->render(scene, b).has_value());
   ASSERT_EQ(a.rgb.size(), b.rgb.size());
   EXPECT_EQ(a.distance, b.distance) << "the same geometry passes write the distances";
   double peak = 0.0;
@@ -637,8 +647,8 @@ TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
       EXPECT_EQ(b.rgb[3 * k], static_cast<float>(scene.fog.ambient_cd_m2));
     }
   EXPECT_GT(sky, 0u);
-  std::printf("shading on the CPU: %.2f ms for %dx%d (readback %.2f ms)\n", (*cpu)->stats().shade_ms,
-              scene.camera.width, scene.camera.height, (*cpu)->stats().readback_ms);
+  std::printf("shading on the CPU: %.2f ms for %dx%d (readback %.2f ms)\n", cpu->stats().shade_ms,
+              scene.camera.width, scene.camera.height, cpu->stats().readback_ms);
   dumpOnFailure("shading_cpu_vs_gpu", b, a);
 }
 
@@ -653,16 +663,11 @@ TEST(GlSurfaceShading, TheBonnetHidesTheEgoLampsInBothShadings) {
   scene.camera.worldFromCamera = worldFromYawPitchRoll(0.0, radians(8.0), 0.0);  // looking down: the lamps in view
   const Bonnet bonnet;  // defaults: x 0.8–2.3 m, y ±0.85 m, z 0.9 m
   scene.body = {bonnet.quad()};
-  GlOptions gpuOpt, cpuOpt;
-  gpuOpt.shading = SurfaceShading::Gpu;
-  cpuOpt.shading = SurfaceShading::Cpu;
-  auto gpu = GlSurfacePass::create(gpuOpt);
-  if (!gpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << gpu.error().message;
-  auto cpu = GlSurfacePass::create(cpuOpt);
-  ASSERT_TRUE(cpu.has_value()) << cpu.error().message;
+  auto [gpu, cpu] = passesShadingBothWays();
+  if (!gpu || !cpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << skipReason();
   SurfaceBuffers a, b;
-  ASSERT_TRUE((*gpu)->render(scene, a).has_value());
-  ASSERT_TRUE((*cpu)->render(scene, b).has_value());
+  ASSERT_TRUE(gpu->render(scene, a).has_value());
+  ASSERT_TRUE(cpu->render(scene, b).has_value());
   const Camera& cam = scene.camera;
   std::size_t onPlate = 0, agree = 0;
   for (int j = 0; j < cam.height; ++j)
@@ -705,7 +710,7 @@ TEST(GlSurfaceShading, TheBonnetHidesTheEgoLampsInBothShadings) {
   // Without the road model, against the double-precision CPU renderer, which casts the bonnet too.
   scene.gltf_path.reset();
   SurfaceBuffers g, oracle;
-  ASSERT_TRUE((*cpu)->render(scene, g).has_value());
+  ASSERT_TRUE(cpu->render(scene, g).has_value());
   renderSurfacesCpu(scene, oracle);
   std::size_t mismatched = 0;
   for (std::size_t k = 0; k < g.distance.size(); ++k)

@@ -23,26 +23,6 @@ struct LampGpu {
 };
 static_assert(sizeof(LampGpu) == 128);
 
-std::int32_t typeCode(PhotometricType t) {
-  switch (t) {
-    case PhotometricType::A: return 0;
-    case PhotometricType::B: return 1;
-    case PhotometricType::C: return 2;
-  }
-  return 2;
-}
-
-std::int32_t symmetryCode(PlaneSymmetry s) {
-  switch (s) {
-    case PlaneSymmetry::None: return 0;
-    case PlaneSymmetry::Rotational: return 1;
-    case PlaneSymmetry::Quadrant: return 2;
-    case PlaneSymmetry::Half0To180: return 3;
-    case PlaneSymmetry::Half90To270: return 4;
-    case PlaneSymmetry::MirrorH: return 5;
-  }
-  return 0;
-}
 
 void setVec(float (&dst)[4], const Vec3& v, double w = 0.0) {
   dst[0] = static_cast<float>(v.x);
@@ -116,8 +96,8 @@ void LampUpload::uploadLamps(const Scene& scene) {
             g.params[2] = static_cast<float>(m.outer);
           } else {
             g.kind[0] = 2;
-            g.kind[1] = typeCode(m.type);
-            g.kind[2] = symmetryCode(m.symmetry);
+            g.kind[1] = static_cast<int>(m.type);
+            g.kind[2] = static_cast<int>(m.symmetry);
             g.params[0] = 1.0f;
             // Outside this cone about the axis I = 0 (the GPU airlight cuts rays to it).
             g.params[3] = static_cast<float>(l.profile->supportHalfAngle());

@@ -13,26 +13,6 @@ namespace fogbeam {
 
 namespace {
 
-int typeCode(PhotometricType t) {
-  switch (t) {
-    case PhotometricType::A: return 0;
-    case PhotometricType::B: return 1;
-    case PhotometricType::C: return 2;
-  }
-  return 2;
-}
-
-int symmetryCode(PlaneSymmetry s) {
-  switch (s) {
-    case PlaneSymmetry::None: return 0;
-    case PlaneSymmetry::Rotational: return 1;
-    case PlaneSymmetry::Quadrant: return 2;
-    case PlaneSymmetry::Half0To180: return 3;
-    case PlaneSymmetry::Half90To270: return 4;
-    case PlaneSymmetry::MirrorH: return 5;
-  }
-  return 0;
-}
 
 // The O(1) location of a float axis (kernels::ShadeAxis): buckets no wider than half the
 // finest cell (at most 65 536; a single bucket for fewer than 3 angles), each bucket's cell at
@@ -107,8 +87,8 @@ const kernels::ShadeTable* SurfaceShader::tableFor(const std::shared_ptr<const P
   for (double a : m.vertical) v.push_back(static_cast<float>(a));
   for (double c : m.candela) t->candela.push_back(static_cast<float>(c));
   kernels::ShadeTable& view = t->view;
-  view.type = typeCode(m.type);
-  view.symmetry = symmetryCode(m.symmetry);
+  view.type = static_cast<int>(m.type);
+  view.symmetry = static_cast<int>(m.symmetry);
   view.single_plane = m.horizontal.size() == 1 || m.symmetry == PlaneSymmetry::Rotational;
   // Type C without symmetry: TabulatedProfile::atAngles blends the last plane with the first
   // one + 360° for C beyond the data. The same as an extra plane there (a copy of the first

@@ -49,6 +49,9 @@ struct SpotProfile {
   double outer = 0.0;  ///< radians
 };
 
+/// The enumerators' order is their code in the GPU shaders (TYPE_*, SYM_* in
+/// shaders/common_photometry.glsl) and the CPU shading kernel (render/surface_shading.hpp):
+/// static_cast<int> gives it.
 enum class PhotometricType { A, B, C };
 
 /// How the plane angles of a tabulated profile are completed by symmetry.
