@@ -1,0 +1,412 @@
+// fogbeam — the all-orders reference path tracer (fogbeam/physics/path_tracer.hpp; method and
+// estimators in docs/physics.md, "All-orders reference: the path tracer").
+#include <fogbeam/physics/path_tracer.hpp>
+
+#include <fogbeam/util/thread_pool.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace fogbeam {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// SplitMix64's output function (Steele, Lea & Flood, OOPSLA 2014): a bijective 64-bit mix.
+std::uint64_t mix64(std::uint64_t z) noexcept {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Orthonormal basis around a unit n (Duff et al., JCGT 2017): no branch on a "least axis".
+void basis(const Vec3& n, Vec3& b1, Vec3& b2) noexcept {
+  const double sign = std::copysign(1.0, n.z);
+  const double a = -1.0 / (sign + n.z);
+  const double b = n.x * n.y * a;
+  b1 = Vec3(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+  b2 = Vec3(b, sign + n.y * n.y * a, -n.y);
+}
+
+Vec3 aroundAxis(const Vec3& axis, double cosTheta, double phi) noexcept {
+  Vec3 b1, b2;
+  basis(axis, b1, b2);
+  const double sinTheta = std::sqrt(std::max(0.0, 1.0 - cosTheta * cosTheta));
+  return glm::normalize(sinTheta * std::cos(phi) * b1 + sinTheta * std::sin(phi) * b2 + cosTheta * axis);
+}
+
+}  // namespace
+
+PathRng::PathRng(std::uint64_t seed, std::uint64_t stream, std::uint64_t sample) noexcept
+    : state_(mix64(mix64(mix64(seed) ^ (stream + 0x632be59bd9b4e019ULL)) ^ (sample + 0x9e3779b97f4a7c15ULL))) {}
+
+std::uint64_t PathRng::next() noexcept {
+  state_ += 0x9e3779b97f4a7c15ULL;
+  return mix64(state_);
+}
+
+// Inverse CDF of the scattering angle θ ∈ [0, π] for a phase function p: the density of θ is
+// 2π p(cos θ) sin θ. Nodes θ_i = π (i/(n−1))² crowd the forward peak (fog-mie at 50 µm is a few
+// milliradians wide). Within an interval θ is drawn uniformly, so the sampled pdf is piecewise
+// constant in θ; the weight p / pdf corrects the tabulation error exactly (it stays in [0, ~2]
+// next to θ = 0, where sin θ → 0 but so does the interval's mass per radian).
+struct PathTracer::PhaseTable {
+  std::vector<double> theta, cdf;
+
+  PhaseTable(const Phase& phase, int n) {
+    theta.resize(static_cast<std::size_t>(n));
+    cdf.assign(static_cast<std::size_t>(n), 0.0);
+    auto density = [&](double t) { return 2.0 * kPi * evalPhase(phase, std::cos(t)) * std::sin(t); };
+    for (int i = 0; i < n; ++i) {
+      const double u = static_cast<double>(i) / (n - 1);
+      theta[static_cast<std::size_t>(i)] = kPi * u * u;
+    }
+    for (std::size_t i = 1; i < theta.size(); ++i) {
+      const double a = theta[i - 1], b = theta[i];
+      cdf[i] = cdf[i - 1] + (b - a) / 6.0 * (density(a) + 4.0 * density(0.5 * (a + b)) + density(b));  // Simpson
+    }
+    const double total = cdf.back();
+    for (double& c : cdf) c /= total;
+    cdf.back() = 1.0;
+  }
+
+  // θ and its sampled density per radian.
+  void sample(double xi, double& th, double& pdfTheta) const noexcept {
+    auto it = std::upper_bound(cdf.begin(), cdf.end(), xi);
+    std::size_t i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - cdf.begin())) - 1;
+    i = std::min(i, cdf.size() - 2);
+    const double width = cdf[i + 1] - cdf[i];
+    const double dt = theta[i + 1] - theta[i];
+    const double f = width > 0.0 ? std::clamp((xi - cdf[i]) / width, 0.0, 1.0) : 0.5;
+    th = theta[i] + f * dt;
+    pdfTheta = width / dt;
+  }
+};
+
+Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medium,
+                                     std::optional<GroundPlane> ground, const PathTracerOptions& options) {
+  if (auto st = medium.validate(); !st) return st.error();
+  if (!(medium.extinction_per_m > 0.0) || !std::isfinite(medium.extinction_per_m))
+    return Error{"path tracer: extinction_per_m must be finite and > 0"};
+  if (ground && (!(ground->reflectance >= 0.0 && ground->reflectance <= 1.0) || !std::isfinite(ground->height_m)))
+    return Error{"path tracer: ground reflectance must lie in [0, 1] and its height be finite"};
+  if (options.max_order < 1) return Error{"path tracer: max_order must be >= 1"};
+  if (options.roulette_start < 1) return Error{"path tracer: roulette_start must be >= 1"};
+  if (!(options.roulette_fraction >= 0.0 && options.roulette_fraction < 1.0))
+    return Error{"path tracer: roulette_fraction must lie in [0, 1)"};
+  if (options.phase_table_nodes < 16) return Error{"path tracer: phase_table_nodes must be >= 16"};
+  if (options.batch_size < 1) return Error{"path tracer: batch_size must be >= 1"};
+  PathTracer t;
+  for (std::size_t i = 0; i < lamps.size(); ++i) {
+    if (!lamps[i].profile) return Error{"path tracer: lamp " + std::to_string(i) + " has no profile"};
+    t.lampFromWorld_.push_back(glm::transpose(lamps[i].worldFromLamp));
+    t.lampFlux_.push_back(lamps[i].profile->totalFlux());
+    t.lampLit_.push_back(!ground || lamps[i].position_m.z > ground->height_m ? 1 : 0);
+  }
+  t.lamps_ = std::move(lamps);
+  t.medium_ = medium;
+  t.ground_ = ground;
+  t.options_ = options;
+  if (options.tabulate_all_phases || std::holds_alternative<FogMiePhase>(medium.phase)) {
+    t.phaseKind_ = 2;
+    t.phaseTable_ = std::make_shared<const PhaseTable>(medium.phase, options.phase_table_nodes);
+  } else if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&medium.phase)) {
+    t.phaseKind_ = 1;
+    t.hgG_ = hg->g;
+  } else {
+    t.phaseKind_ = 0;
+  }
+  // Diffusion constants (the P1 approximation): D = 1 / (3 (K_a + K_s (1 − g))) with K_a =
+  // (1 − Ω) K_t, K_s = Ω K_t; diffusion length L = √(D / K_a).
+  const double kt = medium.extinction_per_m;
+  t.diffusionD_ = 1.0 / (3.0 * kt * (1.0 - medium.albedo * meanCosine(medium.phase)));
+  t.diffusionInvL_ = std::sqrt(kt * (1.0 - medium.albedo) / t.diffusionD_);
+  return t;
+}
+
+double PathTracer::diffusionRadiance(const Vec3& x) const noexcept {
+  double sum = 0.0;
+  for (std::size_t l = 0; l < lamps_.size(); ++l) {
+    if (!lampLit_[l]) continue;
+    const double r = glm::length(x - lamps_[l].position_m);
+    // Φ e^{−r/L} / (4π D r): the fluence of an isotropic point source of flux Φ (lm) in the
+    // diffusion approximation; r is held at ≥ 1/K_t (one mean free path), inside which the
+    // approximation means nothing (the uncollided light dominates) and 1/r would blow up.
+    sum += lampFlux_[l] * std::exp(-r * diffusionInvL_) /
+           (4.0 * kPi * diffusionD_ * std::max(r, 1.0 / medium_.extinction_per_m));
+  }
+  return sum * kInvFourPi;
+}
+
+PathTracer::PhaseDraw PathTracer::samplePhase(const Vec3& forward, PathRng& rng) const noexcept {
+  const double xi = rng.uniform();
+  const double phi = 2.0 * kPi * rng.uniform();
+  switch (phaseKind_) {
+    case 0:
+      return {aroundAxis(forward, 1.0 - 2.0 * xi, phi), 1.0};
+    case 1: {
+      // Inverse CDF of HG in μ = cos α (e.g. pbrt-v4, SampleHenyeyGreenstein; sign as p(μ) with
+      // μ = +1 forward): μ = (1 + g² − ((1 − g²)/(1 − g + 2gξ))²) / (2g).
+      const double g = hgG_;
+      double mu;
+      if (std::abs(g) < 1e-3) {
+        mu = 1.0 - 2.0 * xi;
+      } else {
+        const double s = (1.0 - g * g) / (1.0 - g + 2.0 * g * xi);
+        mu = (1.0 + g * g - s * s) / (2.0 * g);
+      }
+      return {aroundAxis(forward, std::clamp(mu, -1.0, 1.0), phi), 1.0};
+    }
+    default: {
+      double th = 0.0, pdfTheta = 1.0;
+      phaseTable_->sample(xi, th, pdfTheta);
+      const double mu = std::cos(th);
+      const double w = pdfTheta > 0.0 ? evalPhase(medium_.phase, mu) * 2.0 * kPi * std::sin(th) / pdfTheta : 0.0;
+      return {aroundAxis(forward, mu, phi), w};
+    }
+  }
+}
+
+PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
+  PathSample out;
+  const double kt = medium_.extinction_per_m;
+  const double omega = medium_.albedo;
+  const double zGround = ground_ ? ground_->height_m : -kInf;
+  if (ground_ && !(ray.origin.z > zGround)) return out;  // the eye is in or under the ground
+
+  // Distance from x along unit dir to the ground plane (+inf when the ray does not go down).
+  auto groundDistance = [&](const Vec3& x, const Vec3& dir) {
+    if (!ground_ || !(dir.z < 0.0)) return kInf;
+    return std::max(0.0, (zGround - x.z) / dir.z);
+  };
+
+  // The lamp term at a point y of a segment whose ray direction is dir, per unit length and per
+  // unit path weight: e^{−K_t t} Ω K_t p(cos α) I(w) e^{−K_t r} / r², cos α = w · (−dir)
+  // (docs/physics.md, "Along one view ray"; t the distance from the segment's start).
+  auto lampTerm = [&](std::size_t l, const Vec3& y, const Vec3& dir, double t) {
+    const Vec3 v = y - lamps_[l].position_m;
+    const double r2 = glm::dot(v, v);
+    const double r = std::sqrt(r2);
+    if (!(r > 0.0)) return 0.0;
+    const Vec3 w = v / r;
+    const double intensity = lamps_[l].profile->intensity(lampFromWorld_[l] * w);
+    if (intensity <= 0.0) return 0.0;
+    return std::exp(-kt * (t + r)) * omega * kt * evalPhase(medium_.phase, -glm::dot(w, dir)) * intensity / r2;
+  };
+
+  auto addOrder = [&](int order, std::size_t l, double value) {
+    if (order == 1) out.single += value;
+    else out.multiple += value;
+    out.rgb += value * lamps_[l].color;
+  };
+
+  Vec3 x = ray.origin;
+  Vec3 dir = ray.direction;
+  double beta = 1.0;  // path weight (dimensionless)
+  double bestImportance = 0.0;
+  int events = 0;
+  const int maxOrder = options_.max_order;
+
+  for (;;) {
+    // ---- one segment: from x along dir up to T (the camera ray: the visible surface or ground).
+    const bool camera = events == 0;
+    const double tGround = groundDistance(x, dir);
+    const double T = camera ? std::min(ray.distance_m, tGround) : tGround;
+    if (!(T > 0.0)) break;
+    const double order = events + 1;
+
+    // Free-flight distance. The camera ray is forced to scatter in [0, T): the truncated
+    // exponential pdf K_t e^{−K_t t} / (1 − e^{−K_t T}), whose normaliser enters the weight, so
+    // order 1 estimates exactly ∫_0^d of the airlight integrand. Later segments sample the plain
+    // exponential; passing T means reaching the ground with probability e^{−K_t T} (weight 1).
+    const double forcedMass = camera ? -std::expm1(-kt * T) : 1.0;  // 1 − e^{−K_t T}
+    const double xi = rng.uniform();
+    double tc = -std::log1p(-xi * forcedMass) / kt;
+    bool collided = true;
+    if (camera) {
+      tc = std::min(tc, std::nextafter(T, 0.0));
+    } else {
+      collided = tc < T;
+    }
+    auto pdfCollision = [&](double t) { return kt * std::exp(-kt * t) / forcedMass; };
+
+    // NEE along the segment, per lamp, two samples combined by the balance heuristic (Veach
+    // 1997; Kulla & Fajardo 2012): the equiangular point t_A (pdf h / ((θ_b − θ_a) r²), which
+    // cancels the 1/r² of a lamp near the segment) and the collision point t_C. Each gives
+    // f(t) / (p_A(t) + p_C(t)); their sum is an unbiased estimate of ∫_0^T f dt.
+    for (std::size_t l = 0; l < lamps_.size(); ++l) {
+      if (!lampLit_[l]) continue;
+      const Vec3& s = lamps_[l].position_m;
+      const double delta = glm::dot(s - x, dir);
+      const double h = std::max(glm::length(x + delta * dir - s), 1e-9);
+      const double ta = std::atan2(-delta, h);
+      const double tb = std::isfinite(T) ? std::atan2(T - delta, h) : 0.5 * kPi;
+      const double span = tb - ta;
+      if (!(span > 0.0)) continue;
+      auto pdfEqui = [&](double t) { return h / (span * (h * h + (t - delta) * (t - delta))); };
+      double tA = delta + h * std::tan(ta + rng.uniform() * span);
+      tA = std::clamp(tA, 0.0, std::isfinite(T) ? std::nextafter(T, 0.0) : kInf);
+      if (std::isfinite(tA)) {
+        const double f = lampTerm(l, x + tA * dir, dir, tA);
+        if (f > 0.0) addOrder(static_cast<int>(order), l, beta * f / (pdfEqui(tA) + pdfCollision(tA)));
+      }
+      if (collided) {
+        const double f = lampTerm(l, x + tc * dir, dir, tc);
+        if (f > 0.0) addOrder(static_cast<int>(order), l, beta * f / (pdfEqui(tc) + pdfCollision(tc)));
+      }
+    }
+
+    // ---- the next vertex.
+    if (collided) {
+      x += tc * dir;
+      beta *= omega * forcedMass;  // Ω: the share scattered (absorption as a weight); forced mass
+      ++events;
+      if (events >= maxOrder) {
+        out.remainder = beta * diffusionRadiance(x);
+        break;
+      }
+      const PhaseDraw d = samplePhase(dir, rng);
+      dir = d.direction;
+      beta *= d.weight;
+    } else {
+      // The ground (T finite, not the camera ray): Lambertian, ρ/π. NEE to each lamp above it:
+      // β ρ/π cos θ_i I(w) e^{−K_t r} / r² (order = events + 1, the ground being that event).
+      x += T * dir;
+      x.z = zGround;
+      const double rho = ground_->reflectance;
+      for (std::size_t l = 0; l < lamps_.size(); ++l) {
+        if (!lampLit_[l]) continue;
+        const Vec3 v = lamps_[l].position_m - x;
+        const double r = glm::length(v);
+        if (!(r > 0.0)) continue;
+        const double cosI = v.z / r;
+        const double intensity = lamps_[l].profile->intensity(lampFromWorld_[l] * (-v / r));
+        if (cosI > 0.0 && intensity > 0.0)
+          addOrder(static_cast<int>(order), l, beta * rho / kPi * cosI * intensity * std::exp(-kt * r) / (r * r));
+      }
+      ++events;
+      beta *= rho;  // cosine-weighted reflection: (ρ/π) cos / (cos/π)
+      if (!(beta > 0.0)) break;
+      if (events >= maxOrder) {
+        out.remainder = beta * diffusionRadiance(x);
+        break;
+      }
+      const double u1 = rng.uniform(), phi = 2.0 * kPi * rng.uniform();
+      const double sr = std::sqrt(u1);
+      dir = Vec3(sr * std::cos(phi), sr * std::sin(phi), std::sqrt(std::max(0.0, 1.0 - u1)));
+    }
+    if (!(beta > 0.0)) break;
+
+    // Russian roulette by weight windows: β·ψ(x), ψ the diffusion estimate of the radiance the
+    // path can still collect here, against the largest value met along this path. Below a
+    // fraction of it the path survives with q = β ψ / (fraction · max) and carries β / q: the
+    // expectation is unchanged (unbiased), paths that wander far from every lamp stop early.
+    const double importance = beta * diffusionRadiance(x);
+    bestImportance = std::max(bestImportance, importance);
+    if (events >= options_.roulette_start) {
+      const double threshold = options_.roulette_fraction * bestImportance;
+      if (importance < threshold) {
+        const double q = importance / threshold;
+        if (!(rng.uniform() < q)) break;
+        beta /= q;
+      }
+    }
+  }
+  out.events = events;
+  return out;
+}
+
+namespace {
+
+struct Sums {
+  double s[5] = {0, 0, 0, 0, 0};
+  double s2[5] = {0, 0, 0, 0, 0};
+  Vec3 rgb{0.0};
+  double events = 0.0;
+  std::uint64_t n = 0;
+
+  void add(const PathSample& p) {
+    const double v[5] = {p.single, p.multiple, p.single + p.multiple, p.remainder, p.single + p.multiple + p.remainder};
+    for (int k = 0; k < 5; ++k) {
+      s[k] += v[k];
+      s2[k] += v[k] * v[k];
+    }
+    rgb += p.rgb;
+    events += p.events;
+    ++n;
+  }
+  void add(const Sums& o) {
+    for (int k = 0; k < 5; ++k) {
+      s[k] += o.s[k];
+      s2[k] += o.s2[k];
+    }
+    rgb += o.rgb;
+    events += o.events;
+    n += o.n;
+  }
+};
+
+McEstimate finish(double s, double s2, std::uint64_t n) {
+  if (n == 0) return {};
+  const double nn = static_cast<double>(n);
+  const double mean = s / nn;
+  const double var = n > 1 ? std::max(0.0, (s2 - s * mean) / (nn - 1.0)) : 0.0;
+  return {mean, std::sqrt(var / nn)};
+}
+
+std::vector<RadianceEstimate> run(std::uint64_t streams, std::uint64_t samples, std::uint64_t seed,
+                                  std::uint64_t streamOffset, std::uint32_t batch, ThreadPool* pool,
+                                  const PathTracer::PathFunction& path) {
+  const std::uint64_t batches = (samples + batch - 1) / batch;
+  std::vector<Sums> partial(static_cast<std::size_t>(streams * batches));
+  // Each work item sums its batch in sample order; the reduction below walks the batches in
+  // order: the floating-point result does not depend on which thread ran which item.
+  auto item = [&](std::size_t k) {
+    const std::uint64_t s = k / batches, b = k % batches;
+    Sums sums;
+    const std::uint64_t end = std::min(samples, (b + 1) * batch);
+    for (std::uint64_t i = b * batch; i < end; ++i) {
+      PathRng rng(seed, streamOffset + s, i);
+      sums.add(path(s, i, rng));
+    }
+    partial[k] = sums;
+  };
+  if (pool != nullptr) {
+    pool->parallelFor(partial.size(), item);
+  } else {
+    for (std::size_t k = 0; k < partial.size(); ++k) item(k);
+  }
+  std::vector<RadianceEstimate> out(static_cast<std::size_t>(streams));
+  for (std::uint64_t s = 0; s < streams; ++s) {
+    Sums total;
+    for (std::uint64_t b = 0; b < batches; ++b) total.add(partial[static_cast<std::size_t>(s * batches + b)]);
+    RadianceEstimate& e = out[static_cast<std::size_t>(s)];
+    McEstimate* q[5] = {&e.single, &e.multiple, &e.all, &e.remainder, &e.total};
+    for (int k = 0; k < 5; ++k) *q[k] = finish(total.s[k], total.s2[k], total.n);
+    e.samples = total.n;
+    if (total.n > 0) {
+      e.rgb = total.rgb / static_cast<double>(total.n);
+      e.mean_events = total.events / static_cast<double>(total.n);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<RadianceEstimate> PathTracer::radiance(std::span<const Ray> rays, std::uint64_t samples,
+                                                   std::uint64_t seed, ThreadPool* pool,
+                                                   std::uint64_t first_stream) const {
+  return run(rays.size(), samples, seed, first_stream, options_.batch_size, pool,
+             [&](std::uint64_t s, std::uint64_t, PathRng& rng) { return trace(rays[s], rng); });
+}
+
+std::vector<RadianceEstimate> PathTracer::estimate(std::uint64_t streams, std::uint64_t samples, std::uint64_t seed,
+                                                   ThreadPool* pool, const PathFunction& path) const {
+  return run(streams, samples, seed, 0, options_.batch_size, pool, path);
+}
+
+}  // namespace fogbeam
