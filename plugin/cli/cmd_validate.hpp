@@ -4,7 +4,19 @@
 #pragma once
 
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/path_tracer.hpp>
+#include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
+#include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/result.hpp>
+#include <fogbeam/util/thread_pool.hpp>
 
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -29,9 +41,177 @@ struct ValidateOptions {
   int segments = AirlightOptions{}.accurate_segments;
   /// false with --no-additions: skip the checks of issue 7's additions (default: run them).
   bool additions = true;
+  /// --path-tracer: fogbeam's single scattering and glow against the all-orders path tracer in
+  /// rings about a lamp in view (issue 18; docs/airlight.md, "Against the all-orders path
+  /// tracer"). Off by default: it takes about a minute.
+  bool path_tracer = false;
+  /// --pt-samples: paths per ring (and for the whole frame) and case (default 20 000).
+  int pt_samples = 20000;
+  /// --pt-out: CSV of the ring figures (one row per case and ring); empty (default): none.
+  std::string pt_out;
 };
 
 /// Runs the validation; returns the exit status: 0, 1 when a bound is missed, 2 on bad input.
 int runValidate(const ValidateOptions& o);
+
+// ---- fogbeam against the all-orders path tracer around a lamp in view (`--path-tracer`) -------
+// Header-only so that tests/plugin runs the same comparison without the executable.
+//
+// The scene: the eye at the origin looking along +x (square image, `pixels` wide, 35° field of
+// view: the 16° ring fits, the image centre is the lamp's image), an isotropic lamp of
+// `intensity_cd` on the axis at R = T / K_t, infinite fog (albedo 1), nothing but the night sky.
+// Per ring of angles from the lamp's direction (pixel centres; the rings' pixels are the
+// quadrature points of every column), the mean luminance of
+//   * fogbeam single: the airlight layer's accurate method per ray (AirlightImageEvaluator);
+//   * fogbeam glow: LampEffects' glow layer (the shipped fast path) for that lamp;
+//   * the path tracer, single (order 1) and all orders (1 … 1000), each ± its standard error:
+//     paths through pixel centres drawn uniformly among the ring's pixels, so it estimates the
+//     same pixel mean as the fogbeam columns (its single part is the same integral as fogbeam
+//     single: the plumbing check).
+// "frame": every pixel at least the first ring's inner angle from the lamp.
+
+struct RingComparisonCase {
+  std::string name;
+  Phase phase = HenyeyGreensteinPhase{0.85};
+  double optical_distance = 1.8;  ///< T = K_t R
+  double extinction_per_m = 0.06;
+  double intensity_cd = 1000.0;
+};
+
+struct RingFigures {
+  double lo_deg = 0.0, hi_deg = 0.0;  ///< hi = +inf: the frame
+  std::size_t pixels = 0;
+  double single = 0.0;  ///< fogbeam single scattering, cd/m²
+  double glow = 0.0;    ///< fogbeam glow layer, cd/m²
+  McEstimate pt_single, pt_all;
+  double mean_events = 0.0;
+  [[nodiscard]] double ratio() const { return pt_all.mean > 0.0 ? (single + glow) / pt_all.mean : 0.0; }
+  /// Standard error of ratio() from the path tracer's (fogbeam's figures are deterministic).
+  [[nodiscard]] double ratioError() const { return pt_all.mean > 0.0 ? ratio() * pt_all.std_error / pt_all.mean : 0.0; }
+};
+
+struct RingComparison {
+  RingComparisonCase c;
+  double distance_m = 0.0;
+  double glow_scale = 0.0;  ///< λ of the glow's energy match (0: no glow)
+  bool lamp_visible = false;
+  std::vector<RingFigures> rings;  ///< the rings, then the frame
+  double fogbeam_seconds = 0.0, path_tracer_seconds = 0.0;
+};
+
+inline const std::vector<std::array<double, 2>>& comparisonRingsDeg() {
+  static const std::vector<std::array<double, 2>> r = {{0.5, 1.0}, {1.0, 2.0}, {2.0, 4.0}, {4.0, 8.0}, {8.0, 16.0}};
+  return r;
+}
+
+/// The comparison for one case; `samples` paths per ring and for the frame; `pixels` the image
+/// width and height (odd: the lamp's image is a pixel centre).
+inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uint64_t samples, std::uint64_t seed,
+                                           const std::shared_ptr<ThreadPool>& pool, int pixels = 351) {
+  using Clock = std::chrono::steady_clock;
+  RingComparison out;
+  out.c = c;
+  out.distance_m = c.optical_distance / c.extinction_per_m;
+  Scene scene;
+  scene.source = "validate --path-tracer";
+  scene.fog.extinction_per_m = c.extinction_per_m;
+  scene.fog.albedo = 1.0;
+  scene.fog.phase = c.phase;
+  scene.camera.position_m = Vec3(0.0);
+  scene.camera.worldFromCamera = Mat3(1.0);
+  scene.camera.fov_x = radians(35.0);
+  scene.camera.width = pixels;
+  scene.camera.height = pixels;
+  SceneLamp lamp;
+  lamp.name = "lamp";
+  lamp.lamp.position_m = Vec3(out.distance_m, 0.0, 0.0);
+  lamp.lamp.worldFromLamp = worldFromAxis(Vec3(-1.0, 0.0, 0.0));  // facing the eye (isotropic: no matter)
+  auto profile = makeProfile(IsotropicProfile{c.intensity_cd});
+  if (!profile) return profile.error();
+  lamp.lamp.profile = *profile;
+  scene.lamps.push_back(lamp);
+  SurfaceBuffers surface;
+  surface.resize(pixels, pixels);
+  std::fill(surface.rgb.begin(), surface.rgb.end(), 0.0f);
+  std::fill(surface.distance.begin(), surface.distance.end(), std::numeric_limits<float>::infinity());
+
+  // Pixels per region (rings, then the frame), by the angle of the pixel centre's ray.
+  const auto& ringsDeg = comparisonRingsDeg();
+  const std::size_t nRings = ringsDeg.size();
+  std::vector<std::vector<std::uint32_t>> members(nRings + 1);
+  const Vec3 toLamp(1.0, 0.0, 0.0);
+  const double frameFrom = radians(ringsDeg.front()[0]);
+  for (int j = 0; j < pixels; ++j)
+    for (int i = 0; i < pixels; ++i) {
+      const Vec3 w = scene.camera.rayDirection(i + 0.5, j + 0.5);
+      const double th = std::atan2(glm::length(glm::cross(w, toLamp)), glm::dot(w, toLamp));
+      const auto k = static_cast<std::uint32_t>(j * pixels + i);
+      for (std::size_t r = 0; r < nRings; ++r)
+        if (th >= radians(ringsDeg[r][0]) && th < radians(ringsDeg[r][1])) members[r].push_back(k);
+      if (th >= frameFrom) members[nRings].push_back(k);
+    }
+
+  // fogbeam: the airlight layer per ray and the glow layer.
+  const auto t0 = Clock::now();
+  auto air = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, AirlightOptions{}, pool);
+  if (!air) return air.error();
+  GlowOptions glowOn;
+  glowOn.enabled = true;
+  auto fx = LampEffects::build(scene, glowOn, GlareOptions{}, pool);
+  if (!fx) return fx.error();
+  std::vector<float> glow, glare;
+  LampEffectsReport report;
+  fx->evaluate(scene, surface, glow, glare, report);
+  if (!report.lamps.empty()) {
+    out.lamp_visible = report.lamps[0].visible;
+    out.glow_scale = report.lamps[0].glow_scale;
+  }
+  out.rings.resize(nRings + 1);
+  for (std::size_t r = 0; r <= nRings; ++r) {
+    RingFigures& f = out.rings[r];
+    f.lo_deg = r < nRings ? ringsDeg[r][0] : ringsDeg.front()[0];
+    f.hi_deg = r < nRings ? ringsDeg[r][1] : std::numeric_limits<double>::infinity();
+    f.pixels = members[r].size();
+    if (members[r].empty()) return Error{"validate --path-tracer: ring without pixels (image too coarse)"};
+    double s = 0.0, g = 0.0;
+    for (std::uint32_t k : members[r]) {
+      const int i = static_cast<int>(k % static_cast<std::uint32_t>(pixels));
+      const int j = static_cast<int>(k / static_cast<std::uint32_t>(pixels));
+      float rgb[3];
+      air->evaluateRay(Ray{scene.camera.position_m, scene.camera.rayDirection(i + 0.5, j + 0.5),
+                           std::numeric_limits<double>::infinity()},
+                       rgb);
+      s += (static_cast<double>(rgb[0]) + static_cast<double>(rgb[1]) + static_cast<double>(rgb[2])) / 3.0;
+      const std::size_t p = 3 * static_cast<std::size_t>(k);
+      g += (static_cast<double>(glow[p]) + static_cast<double>(glow[p + 1]) + static_cast<double>(glow[p + 2])) / 3.0;
+    }
+    f.single = s / static_cast<double>(members[r].size());
+    f.glow = g / static_cast<double>(members[r].size());
+  }
+  out.fogbeam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+
+  // The path tracer: one stream per region, pixels drawn uniformly among its members.
+  const auto t1 = Clock::now();
+  auto pt = PathTracer::build({lamp.lamp}, scene.fog);
+  if (!pt) return pt.error();
+  const auto est = pt->estimate(nRings + 1, samples, seed, pool.get(),
+                                [&](std::uint64_t region, std::uint64_t, PathRng& rng) {
+    const auto& m = members[region];
+    const std::size_t pick = std::min(m.size() - 1, static_cast<std::size_t>(rng.uniform() * static_cast<double>(m.size())));
+    const std::uint32_t k = m[pick];
+    const int i = static_cast<int>(k % static_cast<std::uint32_t>(pixels));
+    const int j = static_cast<int>(k / static_cast<std::uint32_t>(pixels));
+    return pt->trace(Ray{scene.camera.position_m, scene.camera.rayDirection(i + 0.5, j + 0.5),
+                         std::numeric_limits<double>::infinity()},
+                     rng);
+  });
+  for (std::size_t r = 0; r <= nRings; ++r) {
+    out.rings[r].pt_single = est[r].single;
+    out.rings[r].pt_all = est[r].all;
+    out.rings[r].mean_events = est[r].mean_events;
+  }
+  out.path_tracer_seconds = std::chrono::duration<double>(Clock::now() - t1).count();
+  return out;
+}
 
 }  // namespace fogbeam::cli

@@ -84,6 +84,18 @@ struct PathTracer::PhaseTable {
     th = theta[i] + f * dt;
     pdfTheta = width / dt;
   }
+
+  // The sampled density per radian at θ (the interval's, as sample() draws it): nodes are
+  // θ_i = π (i/(n−1))², so the interval of θ is ⌊(n−1) √(θ/π)⌋.
+  [[nodiscard]] double pdf(double th) const noexcept {
+    const double n1 = static_cast<double>(theta.size() - 1);
+    const double u = std::sqrt(std::clamp(th, 0.0, kPi) / kPi) * n1;
+    std::size_t i = static_cast<std::size_t>(std::min(u, n1 - 1.0));
+    // Rounding of the square root can put θ one interval off at a node: settle on the bracket.
+    while (i > 0 && th < theta[i]) --i;
+    while (i + 2 < theta.size() && th >= theta[i + 1]) ++i;
+    return (cdf[i + 1] - cdf[i]) / (theta[i + 1] - theta[i]);
+  }
 };
 
 Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medium,
@@ -105,6 +117,7 @@ Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medi
     t.lampFromWorld_.push_back(glm::transpose(lamps[i].worldFromLamp));
     t.lampFlux_.push_back(lamps[i].profile->totalFlux());
     t.lampLit_.push_back(!ground || lamps[i].position_m.z > ground->height_m ? 1 : 0);
+    if (t.lampLit_.back() && t.lampFlux_.back() > 0.0) ++t.guidedLamps_;
   }
   t.lamps_ = std::move(lamps);
   t.medium_ = medium;
@@ -170,12 +183,66 @@ PathTracer::PhaseDraw PathTracer::samplePhase(const Vec3& forward, PathRng& rng)
   }
 }
 
+double PathTracer::phasePdf(const Vec3& forward, const Vec3& w) const noexcept {
+  switch (phaseKind_) {
+    case 0:
+      return kInvFourPi;
+    case 1:
+      return std::abs(hgG_) < 1e-3 ? kInvFourPi : evalPhase(medium_.phase, glm::dot(forward, w));
+    default: {
+      // θ from the cross and dot products: accurate at the forward peak, where acos is not.
+      const double s = glm::length(glm::cross(forward, w));
+      const double th = std::atan2(s, glm::dot(forward, w));
+      return s > 0.0 ? phaseTable_->pdf(th) / (2.0 * kPi * s) : 0.0;
+    }
+  }
+}
+
+double PathTracer::guideWeight(std::size_t l, const Vec3& x) const noexcept {
+  if (!lampLit_[l]) return 0.0;
+  const double r = glm::length(x - lamps_[l].position_m);
+  return lampFlux_[l] * std::exp(-r * diffusionInvL_) / std::max(r, 1.0 / medium_.extinction_per_m);
+}
+
+double PathTracer::guidePdf(const Vec3& x, const Vec3& w, double weightSum) const noexcept {
+  double sum = 0.0;
+  for (std::size_t l = 0; l < lamps_.size(); ++l) {
+    const double c = guideWeight(l, x);
+    if (!(c > 0.0)) continue;
+    const Vec3 a = lamps_[l].position_m - x;
+    if (!(glm::dot(a, w) > 0.0)) continue;  // the cone is the hemisphere towards the lamp
+    const double s = glm::length(glm::cross(w, a)) / glm::length(a);  // sin ψ
+    if (!(s > 0.0)) continue;
+    sum += c / (kPi * kPi * s);
+  }
+  return sum / weightSum;
+}
+
+Vec3 PathTracer::sampleGuide(const Vec3& x, double weightSum, PathRng& rng) const noexcept {
+  // Lamp ℓ with probability c_ℓ / Σ c, then ψ uniform in [0, π/2] and φ uniform about the
+  // direction from x to it: pdf g_ℓ(ω) = 1 / (π² sin ψ) on that hemisphere.
+  const double target = rng.uniform() * weightSum;
+  double acc = 0.0;
+  std::size_t pick = lamps_.size();
+  for (std::size_t l = 0; l < lamps_.size(); ++l) {
+    const double c = guideWeight(l, x);
+    if (!(c > 0.0)) continue;
+    pick = l;
+    acc += c;
+    if (target < acc) break;
+  }
+  const Vec3 a = glm::normalize(lamps_[pick].position_m - x);
+  const double psi = 0.5 * kPi * rng.uniform();
+  return aroundAxis(a, std::cos(psi), 2.0 * kPi * rng.uniform());
+}
+
 PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
   PathSample out;
   const double kt = medium_.extinction_per_m;
   const double omega = medium_.albedo;
   const double zGround = ground_ ? ground_->height_m : -kInf;
   if (ground_ && !(ray.origin.z > zGround)) return out;  // the eye is in or under the ground
+  const bool guiding = options_.lamp_guiding && guidedLamps_ > 0;
 
   // Distance from x along unit dir to the ground plane (+inf when the ray does not go down).
   auto groundDistance = [&](const Vec3& x, const Vec3& dir) {
@@ -203,40 +270,13 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
     out.rgb += value * lamps_[l].color;
   };
 
-  Vec3 x = ray.origin;
-  Vec3 dir = ray.direction;
-  double beta = 1.0;  // path weight (dimensionless)
-  double bestImportance = 0.0;
-  int events = 0;
-  const int maxOrder = options_.max_order;
-
-  for (;;) {
-    // ---- one segment: from x along dir up to T (the camera ray: the visible surface or ground).
-    const bool camera = events == 0;
-    const double tGround = groundDistance(x, dir);
-    const double T = camera ? std::min(ray.distance_m, tGround) : tGround;
-    if (!(T > 0.0)) break;
-    const double order = events + 1;
-
-    // Free-flight distance. The camera ray is forced to scatter in [0, T): the truncated
-    // exponential pdf K_t e^{−K_t t} / (1 − e^{−K_t T}), whose normaliser enters the weight, so
-    // order 1 estimates exactly ∫_0^d of the airlight integrand. Later segments sample the plain
-    // exponential; passing T means reaching the ground with probability e^{−K_t T} (weight 1).
-    const double forcedMass = camera ? -std::expm1(-kt * T) : 1.0;  // 1 − e^{−K_t T}
-    const double xi = rng.uniform();
-    double tc = -std::log1p(-xi * forcedMass) / kt;
-    bool collided = true;
-    if (camera) {
-      tc = std::min(tc, std::nextafter(T, 0.0));
-    } else {
-      collided = tc < T;
-    }
-    auto pdfCollision = [&](double t) { return kt * std::exp(-kt * t) / forcedMass; };
-
-    // NEE along the segment, per lamp, two samples combined by the balance heuristic (Veach
-    // 1997; Kulla & Fajardo 2012): the equiangular point t_A (pdf h / ((θ_b − θ_a) r²), which
-    // cancels the 1/r² of a lamp near the segment) and the collision point t_C. Each gives
-    // f(t) / (p_A(t) + p_C(t)); their sum is an unbiased estimate of ∫_0^T f dt.
+  // NEE along the segment x + t dir, t ∈ [0, T), per lamp, two samples combined by the balance
+  // heuristic (Veach 1997; Kulla & Fajardo 2012): the equiangular point t_A (pdf
+  // h / ((θ_b − θ_a) r²), which cancels the 1/r² of a lamp near the segment) and the collision
+  // point t_C (density pdfC(t); present when `collided`). Each gives f(t) / (p_A(t) + p_C(t));
+  // their sum is an unbiased estimate of ∫_0^T f dt. Scaled by `weight`.
+  auto segmentNee = [&](const Vec3& x, const Vec3& dir, double T, bool collided, double tc, auto&& pdfC, int order,
+                        double weight) {
     for (std::size_t l = 0; l < lamps_.size(); ++l) {
       if (!lampLit_[l]) continue;
       const Vec3& s = lamps_[l].position_m;
@@ -251,13 +291,79 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
       tA = std::clamp(tA, 0.0, std::isfinite(T) ? std::nextafter(T, 0.0) : kInf);
       if (std::isfinite(tA)) {
         const double f = lampTerm(l, x + tA * dir, dir, tA);
-        if (f > 0.0) addOrder(static_cast<int>(order), l, beta * f / (pdfEqui(tA) + pdfCollision(tA)));
+        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(tA) + pdfC(tA)));
       }
       if (collided) {
         const double f = lampTerm(l, x + tc * dir, dir, tc);
-        if (f > 0.0) addOrder(static_cast<int>(order), l, beta * f / (pdfEqui(tc) + pdfCollision(tc)));
+        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(tc) + pdfC(tc)));
       }
     }
+  };
+
+  // Lamp-guided NEE at a vertex x (docs/physics.md, "Variance near lamps"). The next order's
+  // lamp connections along the segment leaving x are ∫ f_s(ω) S(ω) dω (f_s the phase function
+  // about `forward`, or cos θ/π off the ground; S(ω) the segment's connections per unit weight).
+  // Two strategies estimate it, combined by the balance heuristic: the phase-sampled ω_P that
+  // continues the path (its segment's connections are scaled by p_P / (p_P + q p_G), returned),
+  // and a guided ω_G drawn here (pdf p_G, ∝ 1/sin ψ about a lamp) whose segment is connected at
+  // once with weight β f_s(ω_G) / (p_P(ω_G) + q p_G(ω_G)), q = 1 the guided samples per vertex.
+  // S(ω) ∝ 1/h for a segment passing at h from a lamp, p_G ∝ 1/sin ψ ∝ 1/h: their ratio stays
+  // bounded (the phase sample alone has a logarithmically infinite variance). (Guiding only
+  // near lamps, q = min(1, e^{1 − K_t r}), is as unbiased and cheaper, but measured worse far
+  // from the lamp, where the tail is relative to a small mean: docs/physics.md.) The guided
+  // segment is connected through the medium by its equiangular sample alone (bounded by itself:
+  // the pdf cancels the 1/r²); the ground connection at a segment's end keeps the phase sample
+  // alone (it has no 1/h).
+  auto guidedNee = [&](const Vec3& x, const Vec3& forward, bool ground, const Vec3& wP, double beta, int order) {
+    double weightSum = 0.0;
+    for (std::size_t l = 0; l < lamps_.size(); ++l) weightSum += guideWeight(l, x);
+    if (!(weightSum > 0.0)) return 1.0;
+    constexpr double q = 1.0;  // one guided sample per vertex (see above)
+    auto pdfP = [&](const Vec3& w) { return ground ? std::max(0.0, w.z) / kPi : phasePdf(forward, w); };
+    {
+      const Vec3 wG = sampleGuide(x, weightSum, rng);
+      const double fG = ground ? std::max(0.0, wG.z) / kPi : evalPhase(medium_.phase, glm::dot(forward, wG));
+      const double T = groundDistance(x, wG);
+      const double pdf = pdfP(wG) + q * guidePdf(x, wG, weightSum);
+      if (fG > 0.0 && T > 0.0 && pdf > 0.0)
+        segmentNee(x, wG, T, false, 0.0, [](double) { return 0.0; }, order, beta * fG / pdf);
+    }
+    const double pP = pdfP(wP);
+    const double pG = guidePdf(x, wP, weightSum);
+    return pP > 0.0 ? pP / (pP + q * pG) : 0.0;
+  };
+
+  Vec3 x = ray.origin;
+  Vec3 dir = ray.direction;
+  double beta = 1.0;  // path weight (dimensionless)
+  double mis = 1.0;   // the segment's connections' MIS weight against the guided sample
+  double bestImportance = 0.0;
+  int events = 0;
+  const int maxOrder = options_.max_order;
+
+  for (;;) {
+    // ---- one segment: from x along dir up to T (the camera ray: the visible surface or ground).
+    const bool camera = events == 0;
+    const double tGround = groundDistance(x, dir);
+    const double T = camera ? std::min(ray.distance_m, tGround) : tGround;
+    if (!(T > 0.0)) break;
+    const int order = events + 1;
+
+    // Free-flight distance. The camera ray is forced to scatter in [0, T): the truncated
+    // exponential pdf K_t e^{−K_t t} / (1 − e^{−K_t T}), whose normaliser enters the weight, so
+    // order 1 estimates exactly ∫_0^d of the airlight integrand. Later segments sample the plain
+    // exponential; passing T means reaching the ground with probability e^{−K_t T} (weight 1).
+    const double forcedMass = camera ? -std::expm1(-kt * T) : 1.0;  // 1 − e^{−K_t T}
+    const double xi = rng.uniform();
+    double tc = -std::log1p(-xi * forcedMass) / kt;
+    bool collided = true;
+    if (camera) {
+      tc = std::min(tc, std::nextafter(T, 0.0));
+    } else {
+      collided = tc < T;
+    }
+    segmentNee(x, dir, T, collided, tc, [&](double t) { return kt * std::exp(-kt * t) / forcedMass; }, order,
+               beta * mis);
 
     // ---- the next vertex.
     if (collided) {
@@ -269,6 +375,7 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
         break;
       }
       const PhaseDraw d = samplePhase(dir, rng);
+      mis = guiding ? guidedNee(x, dir, false, d.direction, beta, events + 1) : 1.0;
       dir = d.direction;
       beta *= d.weight;
     } else {
@@ -285,7 +392,7 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
         const double cosI = v.z / r;
         const double intensity = lamps_[l].profile->intensity(lampFromWorld_[l] * (-v / r));
         if (cosI > 0.0 && intensity > 0.0)
-          addOrder(static_cast<int>(order), l, beta * rho / kPi * cosI * intensity * std::exp(-kt * r) / (r * r));
+          addOrder(order, l, beta * rho / kPi * cosI * intensity * std::exp(-kt * r) / (r * r));
       }
       ++events;
       beta *= rho;  // cosine-weighted reflection: (ρ/π) cos / (cos/π)
@@ -296,7 +403,9 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
       }
       const double u1 = rng.uniform(), phi = 2.0 * kPi * rng.uniform();
       const double sr = std::sqrt(u1);
-      dir = Vec3(sr * std::cos(phi), sr * std::sin(phi), std::sqrt(std::max(0.0, 1.0 - u1)));
+      const Vec3 next(sr * std::cos(phi), sr * std::sin(phi), std::sqrt(std::max(0.0, 1.0 - u1)));
+      mis = guiding ? guidedNee(x, Vec3(0.0, 0.0, 1.0), true, next, beta, events + 1) : 1.0;
+      dir = next;
     }
     if (!(beta > 0.0)) break;
 

@@ -79,6 +79,14 @@ struct PathTracerOptions {
   /// Samples per work item of estimate(); part of what fixes the summation order (keep it fixed
   /// when comparing runs bit for bit).
   std::uint32_t batch_size = 256;
+  /// Lamp-guided next-event estimation at every scattering vertex (medium and ground): besides
+  /// the phase-sampled direction that continues the path, one direction drawn towards a lamp
+  /// (ψ from the lamp's direction uniform in [0, π/2], pdf 1/(π² sin ψ); the lamp chosen ∝ its
+  /// diffusion importance at the vertex) gets its own segment's lamp connections, and the two
+  /// directions' segment connections are combined by the balance heuristic (two-sample MIS).
+  /// This bounds the 1/h of a segment passing at h from a lamp; the path's continuation and its
+  /// weight are untouched. false: phase-sampled segments only.
+  bool lamp_guiding = true;
 };
 
 /// A counter-based generator (SplitMix64, Steele et al. 2014): the state is a hash of
@@ -172,12 +180,17 @@ class PathTracer {
   [[nodiscard]] PhaseDraw samplePhase(const Vec3& forward, PathRng& rng) const noexcept;
 
  private:
+  [[nodiscard]] double phasePdf(const Vec3& forward, const Vec3& w) const noexcept;
+  [[nodiscard]] double guideWeight(std::size_t lamp, const Vec3& x) const noexcept;
+  [[nodiscard]] double guidePdf(const Vec3& x, const Vec3& w, double weightSum) const noexcept;
+  [[nodiscard]] Vec3 sampleGuide(const Vec3& x, double weightSum, PathRng& rng) const noexcept;
   struct PhaseTable;  // inverse CDF over the scattering angle (path_tracer.cpp)
   PathTracer() = default;
   std::vector<Lamp> lamps_;
   std::vector<Mat3> lampFromWorld_;
   std::vector<double> lampFlux_;  // Φ_ℓ in lm, for the diffusion estimate
   std::vector<char> lampLit_;     // lamp above the ground (or no ground)
+  std::size_t guidedLamps_ = 0;   // lit lamps with flux > 0 (guiding targets)
   Medium medium_;
   std::optional<GroundPlane> ground_;
   PathTracerOptions options_;
