@@ -11,14 +11,13 @@
 //  * sums: the same float operations in the same order (front = A + G + V; composite =
 //    L_s + front; overlay = front + I_a (1 − T)), and no fused multiply-add: GCC contracts
 //    a·b + c into an FMA on targets that have one (AVX2, AVX-512) unless told not to, hence
-//    fp-contract=off for this file;
+//    -ffp-contract=off for this file (core/CMakeLists.txt: GCC and clang alike);
 //  * T: Highway's Exp (≤ 1 ulp in double, its documentation) and std::exp (< 1 ulp, glibc)
 //    can differ in the last bits of the double, but T is stored as float, which keeps 24 of the
 //    53 bits: both round to the same float unless the double lies within a few ulp of a
 //    midpoint between two floats (or below the normal floats). Those lanes — about 2^-20 of
 //    all, with the margin below — are recomputed with std::exp, so the float is the scalar
 //    one whenever both exps are within kMidpointMarginUlp/2 ulp of the true value.
-#pragma GCC optimize("fp-contract=off")
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "render/frame.cpp"

@@ -46,7 +46,8 @@ void PackRgba16F(const float* rgb, const float* alpha, float alphaConstant, std:
 
 // RGBA8 sRGB (packRgba8Srgb's definition, pixel_pack.cpp): per channel x = max(v, 0)·gain,
 // y = x/(1 + x) (1 where x is not finite), code = table[⌊y·16384 + 0.5⌋] — the same float
-// operations in the same order (no fused multiply-add), so the bytes are the scalar loop's; the
+// operations in the same order (no fused multiply-add: -ffp-contract=off for this file,
+// core/CMakeLists.txt), so the bytes are the scalar loop's; the
 // table is widened to 32 bits for the gather. Four codes make one little-endian word R, G, B, 255.
 void PackRgba8Srgb(const float* rgb, std::size_t n, float gain, const std::int32_t* table, std::uint8_t* out) {
   const hn::ScalableTag<float> df;

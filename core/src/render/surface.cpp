@@ -11,14 +11,13 @@
 //
 //  * every operation but the exp is the scalar one, in the same order (glm's dot is
 //    (x + y) + z, its mat3 · vec3 the same per row), and no fused multiply-add: GCC contracts
-//    a·b + c into an FMA on targets that have one unless told not to, hence fp-contract=off;
+//    a·b + c into an FMA on targets that have one unless told not to, hence -ffp-contract=off for this file (core/CMakeLists.txt: GCC and clang alike);
 //  * e^{−K_t r}: Highway's Exp (≤ 1 ulp, its documentation) and std::exp (< 1 ulp, glibc) may
 //    differ in the last bit of the double (measured: 1 value in 10, never more than 1 ulp). All
 //    terms of L_s are ≥ 0 (intensities, colours, reflectances, T), so L_s in double is then
 //    within a few ulp of the scalar one, and both round to the same float unless it lies within
 //    kMidpointMarginUlp ulp of a midpoint between two floats, or below the normal floats; such
 //    pixels (~1e-5 of them) are shaded again by the scalar definition (shadePixelScalar).
-#pragma GCC optimize("fp-contract=off")
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "render/surface.cpp"
