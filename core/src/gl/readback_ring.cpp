@@ -77,11 +77,14 @@ void ReadbackRing::endFrame(const Reads& reads) {
     glBindFramebuffer(GL_READ_FRAMEBUFFER, reads.airlightFbo);
     readInto(slot.airlight, GL_COLOR_ATTACHMENT0, GL_RGBA, reads.width, reads.height, 4 * n * sizeof(float));
   }
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, reads.surfaceFbo);
-  readInto(slot.color, GL_COLOR_ATTACHMENT0, GL_RGBA, reads.width, reads.height, 4 * n * sizeof(float));
-  readInto(slot.distance, GL_COLOR_ATTACHMENT1, GL_RED, reads.width, reads.height, n * sizeof(float));
   slot.gbuffer = reads.gbuffer;
-  if (slot.gbuffer) readInto(slot.rho, GL_COLOR_ATTACHMENT2, GL_RG, reads.width, reads.height, 2 * n * sizeof(float));
+  slot.empty = reads.gbuffer && reads.empty;
+  if (!slot.empty) {
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, reads.surfaceFbo);
+    readInto(slot.color, GL_COLOR_ATTACHMENT0, GL_RGBA, reads.width, reads.height, 4 * n * sizeof(float));
+    readInto(slot.distance, GL_COLOR_ATTACHMENT1, GL_RED, reads.width, reads.height, n * sizeof(float));
+    if (slot.gbuffer) readInto(slot.rho, GL_COLOR_ATTACHMENT2, GL_RG, reads.width, reads.height, 2 * n * sizeof(float));
+  }
   glBindBuffer(GL_PIXEL_PACK_BUFFER, 0);
   slot.width = reads.width;
   slot.height = reads.height;
@@ -119,7 +122,10 @@ Status ReadbackRing::collect(SurfaceBuffers& out, std::vector<float>* airlight, 
   out.height = slot.height;
   out.rgb.resize(3 * n);
   out.distance.resize(n);
-  if (slot.gbuffer) {
+  if (slot.empty) {
+    if (!shade) return Error{"GlSurfacePass: a geometry-buffer frame needs a shader to collect it"};
+    shade(SurfaceGBufferView{slot.width, slot.height, nullptr, nullptr, nullptr, true}, out);
+  } else if (slot.gbuffer) {
     // The three buffers mapped at once (GL allows several mapped buffers), shaded straight from
     // the mapping: no copy of the 28 bytes a pixel.
     if (!shade) return Error{"GlSurfacePass: a geometry-buffer frame needs a shader to collect it"};

@@ -50,6 +50,9 @@ class ReadbackRing {
   struct Reads {
     GLuint surfaceFbo = 0;   ///< colour attachment 0 (RGBA32F), distance attachment 1 (R32F)
     bool gbuffer = false;    ///< attachment 0 holds (n, ρ red) and attachment 2 (RG32F) ρ green, blue
+    /// With gbuffer: nothing was drawn (no mesh, no body or planes for GL to draw): nothing is
+    /// read back, and collect() hands `shade` a view without buffers (planes only, cast on the CPU).
+    bool empty = false;
     GLuint airlightFbo = 0;  ///< airlight attachment 0 (RGBA32F), or 0: the stage did not run
     int width = 0, height = 0;
     std::size_t triangles = 0;  ///< glTF triangles drawn (reported by collect())
@@ -81,7 +84,7 @@ class ReadbackRing {
     Query surfaceTimer, airlightTimer;
     Sync fence;
     bool hasAirlight = false;
-    bool gbuffer = false;
+    bool gbuffer = false, empty = false;
     int width = 0, height = 0;
     double submitMs = 0.0;
     std::size_t triangles = 0;

@@ -277,9 +277,17 @@ struct GlSurfacePass::Impl {
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_DYNAMIC_DRAW);
   }
 
-  // Clears the targets to the sky and draws the planes and the mesh, bracketed by `timer`
+  // Clears the targets to the sky and draws the planes and the mesh (nothing at all when the CPU
+  // lights a frame with nothing for GL to draw),
   // (GL_TIME_ELAPSED; 0: none).
-  void drawSurfaces(const Scene& scene, GLuint timer) {
+  void drawSurfaces(const Scene& scene, GLuint timer, bool nothingToDraw) {
+    if (nothingToDraw) {  // shading on the CPU, planes and body only: not even a clear is read
+      if (timer != 0) {
+        glBeginQuery(GL_TIME_ELAPSED, timer);
+        glEndQuery(GL_TIME_ELAPSED);
+      }
+      return;
+    }
     const Camera& cam = scene.camera;
     glBindFramebuffer(GL_FRAMEBUFFER, fbo.get());
     const GLenum drawBuffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
@@ -369,13 +377,16 @@ struct GlSurfacePass::Impl {
     uploadPlanes(scene);
     uploadBody(scene);
 
+    // With shading on the CPU and nothing for GL to draw (no mesh, no GPU airlight: planes and
+    // body are cast on the CPU) GL neither clears nor reads back anything.
+    const bool nothingDrawn = cpuShading && meshVertexCount == 0 && !airlight.enabled();
     const gl::ReadbackRing::Timers timers = readback.beginFrame();
-    drawSurfaces(scene, timers.surface);
+    drawSurfaces(scene, timers.surface, nothingDrawn);
     if (airlight.enabled())
       airlight.draw(scene, {lamps.profileTexture(), distanceTex.get(), emptyVao.get(), timers.airlight});
     if (cpuShading) shader.prepare(scene, shadeFrames.emplace_back());  // in step with the ring's slots
-    readback.endFrame({fbo.get(), cpuShading, airlight.enabled() ? airlight.framebuffer() : 0u, cam.width,
-                       cam.height, static_cast<std::size_t>(meshVertexCount) / 3});
+    readback.endFrame({fbo.get(), cpuShading, nothingDrawn, airlight.enabled() ? airlight.framebuffer() : 0u,
+                       cam.width, cam.height, static_cast<std::size_t>(meshVertexCount) / 3});
     if (std::string e = gl::glErrors("surface pass draw/readback"); !e.empty()) return Error{e};
     readback.setSubmitMs(msSince(t0));
     if (!timerQuery) stats.surface_ms = 0.0;
