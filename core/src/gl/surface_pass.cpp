@@ -277,9 +277,9 @@ struct GlSurfacePass::Impl {
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_DYNAMIC_DRAW);
   }
 
-  // Clears the targets to the sky and draws the planes and the mesh (nothing at all when the CPU
-  // lights a frame with nothing for GL to draw),
-  // (GL_TIME_ELAPSED; 0: none).
+  // Clears the targets to the sky and draws the planes, the mesh and the body, bracketed by
+  // `timer` (GL_TIME_ELAPSED; 0: none); with `nothingToDraw` (the CPU lights a frame that has
+  // nothing for GL to draw) only the timer.
   void drawSurfaces(const Scene& scene, GLuint timer, bool nothingToDraw) {
     if (nothingToDraw) {  // shading on the CPU, planes and body only: not even a clear is read
       if (timer != 0) {
