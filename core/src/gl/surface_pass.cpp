@@ -121,6 +121,7 @@ struct GlSurfacePass::Impl {
   gl::VertexArray emptyVao = gl::genVertexArray(), meshVao = gl::genVertexArray(), bodyVao = gl::genVertexArray();
   gl::Buffer meshVbo = gl::genBuffer(), planeSsbo = gl::genBuffer(), bodyVbo = gl::genBuffer();
   GLsizei bodyVertexCount = 0;  // the scene's body quads (the bonnet), camera-relative, this frame
+  std::vector<MeshVertex> bodyVertices;  // their triangles, rebuilt every frame in kept storage
   GLsizei meshVertexCount = 0;
   Vec3 meshAnchor_m{0.0};
   std::optional<std::string> meshPath;  // the glTF file currently in meshVbo
@@ -256,7 +257,8 @@ struct GlSurfacePass::Impl {
   // The scene's body quads (the bonnet) as two triangles each, relative to the eye (so that the
   // mesh program draws them with a zero anchor), into bodyVbo.
   void uploadBody(const Scene& scene) {
-    std::vector<MeshVertex> v;
+    std::vector<MeshVertex>& v = bodyVertices;
+    v.clear();
     for (const Quad& q : scene.body) {
       const Vec3 c = q.corner_m - scene.camera.position_m;
       const Vec3 n = glm::normalize(glm::cross(q.edge_u_m, q.edge_v_m));
