@@ -128,6 +128,21 @@ TEST(Camera, CentredResultsAreBitIdenticalToTheCentredFormulas) {
     }
 }
 
+TEST(Camera, PixelRaysAreRayDirectionBitForBit) {
+  // PixelRays hoists rayDirection's focal length and principal point out of pixel loops; the
+  // image evaluator's results must not change with it (centred and off-axis cameras).
+  for (const Camera& cam : {centred(1280, 720, 60.0), centred(320, 180, 75.0).crop(40, 10, 200, 120)}) {
+    const PixelRays rays(cam);
+    for (double y : {0.5, 33.25, 119.5, 717.5})
+      for (double x : {0.5, 17.75, 199.5, 1279.5}) {
+        const Vec3 a = cam.rayDirection(x, y), b = rays.direction(x, y);
+        EXPECT_EQ(a.x, b.x);
+        EXPECT_EQ(a.y, b.y);
+        EXPECT_EQ(a.z, b.z);
+      }
+  }
+}
+
 TEST(Camera, FromFrustumRejectsNonSquarePixelsAndBadAngles) {
   const FrustumAngles ok{radians(30.0), radians(30.0), radians(20.0), radians(20.0)};
   // f = 640 / (2 tan 30°) = 554.26 px, so the height is 2 f tan 20° = 403.46 px.

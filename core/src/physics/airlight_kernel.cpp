@@ -149,6 +149,12 @@ double KernelTable::kernel(const Phase& phase, double psi, double gamma, double 
 KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes) {
   const PsiBasis& basis = psiBasis();
   r_ = basis.functions();
+  constexpr int kPhaseNodes = 1024;
+  phaseTailMax_.assign(kPhaseNodes + 1, 0.0);
+  for (int i = kPhaseNodes; i >= 0; --i) {
+    const double p = evalPhase(phase, std::cos(kPi * i / kPhaseNodes));
+    phaseTailMax_[static_cast<std::size_t>(i)] = std::max(p, i < kPhaseNodes ? phaseTailMax_[static_cast<std::size_t>(i) + 1] : 0.0);
+  }
   coef_.assign(static_cast<std::size_t>(nG_) * static_cast<std::size_t>(nT_) * static_cast<std::size_t>(r_), 0.0f);
   cut_.assign(static_cast<std::size_t>(nG_) * static_cast<std::size_t>(nT_), 0);
   // Nodes spaced so that the last γ node lands on π and the last τ node on kTauMax.
@@ -232,10 +238,40 @@ double KernelTable::tauPosition(double tau) const noexcept {
   return std::clamp(std::log1p(std::max(tau, 0.0) / kTau0) * tScale_, 0.0, nT_ - 1.0);
 }
 
-KernelTable::Lookup KernelTable::lookupAt(double gamma, double v) const noexcept {
+double KernelTable::phaseBoundBeyond(double chi) const noexcept {
+  const auto n = static_cast<double>(phaseTailMax_.size() - 1);
+  const double x = std::clamp(chi / kPi * n, 0.0, n);
+  return 2.0 * phaseTailMax_[static_cast<std::size_t>(x)];
+}
+
+void KernelTable::gammaPosition(double gamma, int& ig, double& fu) const noexcept {
   const double u = std::clamp(gammaAxis(std::clamp(gamma, 0.0, kPi)) * gScale_, 0.0, nG_ - 1.0);
-  const int ig = std::min(static_cast<int>(u), nG_ - 2), it = std::min(static_cast<int>(v), nT_ - 2);
-  const double fu = u - ig, fv = v - it;
+  ig = std::min(static_cast<int>(u), nG_ - 2);
+  fu = u - ig;
+}
+
+void KernelTable::sliceAt(double v, std::vector<float>& rows, std::vector<int>& cuts) const {
+  const int it = std::min(static_cast<int>(v), nT_ - 2);
+  const auto fv = static_cast<float>(v - it), gv = 1.0f - fv;
+  const auto r = static_cast<std::size_t>(r_);
+  rows.resize(static_cast<std::size_t>(nG_) * r);
+  cuts.resize(static_cast<std::size_t>(nG_));
+  for (int ig = 0; ig < nG_; ++ig) {
+    const std::size_t node = static_cast<std::size_t>(ig) * static_cast<std::size_t>(nT_) + static_cast<std::size_t>(it);
+    const float* a = coef_.data() + node * r;
+    const float* b = a + r;
+    float* o = rows.data() + static_cast<std::size_t>(ig) * r;
+    for (std::size_t k = 0; k < r; ++k) o[k] = gv * a[k] + fv * b[k];
+    cuts[static_cast<std::size_t>(ig)] = std::min(cut_[node], cut_[node + 1]);
+  }
+}
+
+KernelTable::Lookup KernelTable::lookupAt(double gamma, double v) const noexcept {
+  int ig = 0;
+  double fu = 0.0;
+  gammaPosition(gamma, ig, fu);
+  const int it = std::min(static_cast<int>(v), nT_ - 2);
+  const double fv = v - it;
   Lookup l{};
   int cut = psiBasis().intervals();
   for (int c = 0; c < 4; ++c) {

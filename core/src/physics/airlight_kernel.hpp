@@ -98,6 +98,21 @@ class KernelTable {
   /// τ's position on the table's axis (a pencil's rays share one τ: computed once).
   [[nodiscard]] double tauPosition(double tau) const noexcept;
   [[nodiscard]] Lookup lookupAt(double gamma, double tauPos) const noexcept;
+
+  /// The table at one τ (a pencil's rays share it): the bilinear blend split into its τ part,
+  /// done once per pencil, and its γ part, per ray. rows[iγ · functions() + r] = the τ-blend of
+  /// that γ node's two rows, cuts[iγ] = the smaller of their cuts: a ray then reads two rows of
+  /// this 120 KB slice instead of four of the 19 MB table (the same values up to float
+  /// rounding: bilinear interpolation is separable). `tauPos` from tauPosition(); the vectors'
+  /// memory is reused.
+  void sliceAt(double tauPos, std::vector<float>& rows, std::vector<int>& cuts) const;
+  /// γ's position on the table's axis: node ig (≤ gammaNodes() − 2) and weight fu of ig + 1.
+  void gammaPosition(double gamma, int& ig, double& fu) const noexcept;
+  [[nodiscard]] int gammaNodeCount() const noexcept { return nG_; }
+  /// An upper bound of the phase function over scattering angles [χ, π] (χ in radians; the
+  /// largest sample at or beyond the node below χ, 1 024 nodes, doubled for what lies
+  /// between nodes): bounds the light a ray's tail can hold (PencilAirlight).
+  [[nodiscard]] double phaseBoundBeyond(double chi) const noexcept;
   [[nodiscard]] std::size_t bytes() const noexcept { return coef_.size() * sizeof(float) + cut_.size() * sizeof(int); }
   /// M of the header, for tests.
   [[nodiscard]] static double kernel(const Phase& phase, double psi, double gamma, double tau) noexcept;
@@ -107,6 +122,7 @@ class KernelTable {
   double gScale_ = 0.0, tScale_ = 0.0;  // node index per unit of the γ and τ axes (lookup())
   std::vector<float> coef_;  // [(iγ · nT + iτ) · R + r]
   std::vector<int> cut_;     // [iγ · nT + iτ]
+  std::vector<double> phaseTailMax_;  // [i]: max of p over nodes i … end (χ_i = π i / 1024)
 };
 
 /// The table of `phase`, built on first use (~0.5 s on 2 cores) and shared while someone holds

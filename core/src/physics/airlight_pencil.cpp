@@ -41,6 +41,7 @@ Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, cons
   p.options_ = options;
   p.spokeCount_ = options.spokes;
   p.pieces_.resize(static_cast<std::size_t>(p.spokeCount_));
+  p.spokeBound_.assign(static_cast<std::size_t>(p.spokeCount_), 0.0);
   if (options.kernel_expansion && detail::psiBasis().functions() <= kMaxFunctions) {
     p.projections_.resize(static_cast<std::size_t>(p.spokeCount_));
     p.kernel_ = detail::kernelTableFor(lamp.medium().phase);
@@ -90,6 +91,9 @@ void PencilAirlight::reset(const Vec3& eye) {
   tau_ = lamp_->medium().extinction_per_m * distance_;
   expNegTau_ = std::exp(-tau_);
   tauPosition_ = kernel_ ? kernel_->tauPosition(tau_) : 0.0;
+  sliceRows_.clear();
+  sliceCuts_.clear();
+  if (kernel_ && tau_ <= detail::KernelTable::kTauMax) kernel_->sliceAt(tauPosition_, sliceRows_, sliceCuts_);
   // The adaptive plan's test rays (middleDiffers): the expansion's coefficients at angles γ
   // from the lamp's direction of 0.25° to 128° (doubling), this τ, up to each one's cut.
   testRows_.clear();
@@ -165,24 +169,25 @@ PencilAirlight::SpokePair PencilAirlight::spokesOf(const Vec3& direction) const 
 }
 
 double PencilAirlight::azimuthOf(const Vec3& perp) const noexcept {
-  return std::atan2(glm::dot(perp, e2_), glm::dot(perp, e1_));  // 0 on the axis itself: any spoke
+  return fastAtan2(glm::dot(perp, e2_), glm::dot(perp, e1_));  // 0 on the axis itself: any spoke
 }
 
 PencilAirlight::SpokePair PencilAirlight::spokesAt(double phi) const noexcept {
-  const double u = (phi + kPi) / kTwoPi * spokeCount_;
+  // φ ∈ [−π, π] (atan2), so u ∈ [0, spokeCount_]: wrapping is a comparison, not a division.
+  const double u = (phi + kPi) * (spokeCount_ / kTwoPi);
   const double fl = std::floor(u);
+  const auto wrap = [n = spokeCount_](int s) { return s >= n ? s - n : (s < 0 ? s + n : s); };
   SpokePair sp;
-  sp.s0 = static_cast<int>(fl) % spokeCount_;
-  if (sp.s0 < 0) sp.s0 += spokeCount_;
+  sp.s0 = wrap(static_cast<int>(fl));
   const auto k = static_cast<std::size_t>(sp.s0);
   if (leafW_[k] > 0) {  // a planned leaf: blend its two ends
     const int a = leafA_[k], w = leafW_[k];
     sp.t = std::clamp((static_cast<double>(sp.s0) + (u - fl) - a) / w, 0.0, 1.0);
-    sp.s0 = a % spokeCount_;
-    sp.s1 = (a + w) % spokeCount_;
+    sp.s0 = wrap(a);
+    sp.s1 = wrap(a + w);
     return sp;
   }
-  sp.s1 = (sp.s0 + 1) % spokeCount_;
+  sp.s1 = wrap(sp.s0 + 1);
   sp.t = std::clamp(u - fl, 0.0, 1.0);
   return sp;
 }
@@ -340,6 +345,12 @@ void PencilAirlight::sampleSpoke(int s) const {
   // Spot intervals where I is constant were emitted in pass 1, before the cells: order by ψ.
   std::sort(out.begin(), out.end(), [](const Piece& x, const Piece& y) { return x.a < y.a; });
   mergeSmoothPieces(out);
+  double bound = 0.0;
+  for (const Piece& pc : out) {
+    const double hw = std::max(pc.m - pc.a, pc.b - pc.m);
+    bound = std::max(bound, std::abs(pc.i0) + hw * (std::abs(pc.c1) + hw * std::abs(pc.c2)));
+  }
+  spokeBound_[static_cast<std::size_t>(s)] = bound;
   if (kernel_) projectSpoke(s);
 }
 
@@ -490,7 +501,7 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
   const double c = glm::dot(direction, e0_);               // cos α
   const Vec3 perp = direction - c * e0_;
   const double sa = glm::length(perp);                     // sin α
-  const double alpha = std::atan2(sa, c);
+  const double alpha = fastAtan2(sa, c);
   const SpokePair sp = distance_ > 1e-6 ? spokesAt(azimuthOf(perp)) : SpokePair{};
   const double kt = ev.medium().extinction_per_m;
   const double h = distance_ * sa, p = distance_ * c;      // eq. (3): lamp–ray distance, foot
@@ -514,21 +525,38 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
     psi = heap.data();
   }
   for (std::size_t m = 0; m < n; ++m)
-    psi[m] = distances[m] > 0.0 ? (std::isinf(distances[m]) ? kHalfPi : std::atan2(distances[m] - p, h)) + psiFoot : -1.0;
+    psi[m] = distances[m] > 0.0 ? (std::isinf(distances[m]) ? kHalfPi : fastAtan2(distances[m] - p, h)) + psiFoot : -1.0;
   // The two spokes either side of the ray's azimuth, blended linearly.
   ensureSpoke(sp.s0);
   ensureSpoke(sp.s1);
   const double tau = kt * distance_;
   if (kernel_ && tau <= detail::KernelTable::kTauMax) {
     // The expansion up to its cut, then G-moment product integration from there to each end.
-    const detail::KernelTable::Lookup lk = kernel_->lookupAt(alpha, tau == tau_ ? tauPosition_ : kernel_->tauPosition(tau));
     const detail::PsiBasis& basis = detail::psiBasis();
     const int nf = basis.functions();
-    const double cutPsi = basis.knot(lk.cut);
-    const int needed = std::min(nf, basis.interval(std::min(cutPsi, psiEnd)) + 4);
     float u[kMaxFunctions];
-    for (int r = 0; r < needed; ++r) u[r] = lk.coefficient(r);
+    int cut = 0, needed = 0;
+    if (tau == tau_ && !sliceCuts_.empty()) {
+      // The pencil's own τ (every ray of a frame): two rows of its slice of the table.
+      int ig = 0;
+      double fu = 0.0;
+      kernel_->gammaPosition(alpha, ig, fu);
+      const auto row = static_cast<std::size_t>(ig) * static_cast<std::size_t>(nf);
+      cut = std::min(sliceCuts_[static_cast<std::size_t>(ig)], sliceCuts_[static_cast<std::size_t>(ig) + 1]);
+      needed = std::min(nf, basis.interval(std::min(basis.knot(cut), psiEnd)) + 4);
+      const float* a = sliceRows_.data() + row;
+      const float* b = a + nf;
+      const auto wb = static_cast<float>(fu), wa = 1.0f - wb;
+      for (int r = 0; r < needed; ++r) u[r] = wa * a[r] + wb * b[r];
+    } else {
+      // The fog changed since reset() (AirlightEvaluator::setMedium without a reset).
+      const detail::KernelTable::Lookup lk = kernel_->lookupAt(alpha, kernel_->tauPosition(tau));
+      cut = lk.cut;
+      needed = std::min(nf, basis.interval(std::min(basis.knot(cut), psiEnd)) + 4);
+      for (int r = 0; r < needed; ++r) u[r] = lk.coefficient(r);
+    }
     for (int r = needed; r < std::min(nf, kMaxFunctions); ++r) u[r] = 0.0f;
+    const double cutPsi = basis.knot(cut);
     const double scaleFit = ev.medium().albedo * kt / h * (tau == tau_ ? expNegTau_ : std::exp(-tau));
     std::size_t firstTail = n;
     for (std::size_t m = 0; m < n; ++m) {
@@ -543,9 +571,31 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
     // The tail holds the light scattered beyond the cut, attenuated at least by M's exponent
     // there: past e^{−30} it cannot show (M's e^{−τ} is already out of the scale).
     // tan(χ/2) = sin χ / (1 + cos χ), χ = ψc + α, from the knot's cos and sin: no trigonometry.
-    const double sinChi = basis.knotSin(lk.cut) * c + basis.knotCos(lk.cut) * sa;
-    const double cosChi = basis.knotCos(lk.cut) * c - basis.knotSin(lk.cut) * sa;
-    const bool tailCounts = 1.0 + cosChi > 1e-12 && tau * (c + sa * sinChi / (1.0 + cosChi) - 1.0) < 30.0;
+    const double sinChi = basis.knotSin(cut) * c + basis.knotCos(cut) * sa;
+    const double cosChi = basis.knotCos(cut) * c - basis.knotSin(cut) * sa;
+    const double excess = 1.0 + cosChi > 1e-12 ? tau * (c + sa * sinChi / (1.0 + cosChi) - 1.0) : 1e300;
+    bool tailCounts = excess < 30.0;
+    if (tailCounts && firstTail < n) {
+      // Every distance from firstTail on has the same expansion part (it ends at the cut), and
+      // the tail beyond it holds at most e^{−excess} · max p(χ ≥ χc) · max |I| · (π − α − ψc)
+      // (M's exponent grows along the tail): where that is below kTailShare of the expansion
+      // part, the tail's product integration (G-moment look-ups, ~a third of a traffic ray)
+      // cannot change the ray beyond that fraction and is skipped. Rays far from a lamp's image
+      // end in back-scattering, where the phase function is small.
+      constexpr double kTailShare = 1e-5;
+      const double chiC = fastAtan2(sinChi, cosChi);
+      double iMax = 0.0;  // |I| over the tail, both spokes (bounds of their pieces there)
+      for (const int sk : {sp.s0, sp.s1}) {
+        const std::vector<Piece>& pcs = pieces_[static_cast<std::size_t>(sk)];
+        auto it = std::upper_bound(pcs.begin(), pcs.end(), cutPsi, [](double x, const Piece& pc) { return x < pc.b; });
+        for (; it != pcs.end() && it->a < psiEnd; ++it) {
+          const double hw = std::max(it->m - it->a, it->b - it->m);
+          iMax = std::max(iMax, std::abs(it->i0) + hw * (std::abs(it->c1) + hw * std::abs(it->c2)));
+        }
+      }
+      const double bound = std::exp(-excess) * kernel_->phaseBoundBeyond(chiC) * iMax * (psiEnd - cutPsi);
+      if (bound * scaleFit <= kTailShare * std::abs(out[firstTail])) tailCounts = false;
+    }
     if (!tailCounts) firstTail = n;
     if (firstTail < n) {
       double tail[kStack];

@@ -337,6 +337,7 @@ struct FrameCtx {
   AirlightImage* out;
   kernels::PixelGeometry geo;
   const SubsamplingOptions* opt;
+  PixelRays rays;         // cam's pixel rays (rayDirection without its tangents per call)
   int step = 8;           // coarse step, pixels
   int tile = kTile;       // tile size, pixels (a multiple of step)
   int tilesX = 1, tilesY = 1;
@@ -469,8 +470,7 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
     const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
     for (std::size_t c = 0; c < m; ++c) {
       const std::size_t k = sc.sidx[c];
-      const Ray ray{f.cam->position_m,
-                    f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
+      const Ray ray{f.cam->position_m, f.rays.direction(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])),
                     static_cast<double>(px.d[k])};
       const double l = ev.evaluate(ray);
       r[k] += static_cast<float>(l * ev.lamp().color[0]);
@@ -483,8 +483,15 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
     // The ray itself only for the lamps evaluated per ray or by the pencil; maps read pixels.
     const bool needRay = (others && !st.rayLamps.empty()) || !useMaps;
     for (std::size_t k = 0; k < n; ++k) {
+      // The ray only where a lamp is evaluated: in the lattice's second pass and the tiles'
+      // interpolated blocks most pixels know every moving lamp's value already.
+      float* known = sc.mlActive ? sc.ml.data() + k * f.nq : nullptr;
+      bool anyUnknown = others && !st.rayLamps.empty();
+      for (std::size_t q = 0; q < st.pencilLamps.size() && !anyUnknown; ++q)
+        anyUnknown = !known || std::isnan(known[q]);
       const Ray ray{f.cam->position_m,
-                    needRay ? f.cam->rayDirection(static_cast<double>(px.x[k]), static_cast<double>(px.y[k])) : Vec3(1, 0, 0),
+                    needRay && anyUnknown ? f.rays.direction(static_cast<double>(px.x[k]), static_cast<double>(px.y[k]))
+                                          : Vec3(1, 0, 0),
                     static_cast<double>(px.d[k])};
       double acc[3] = {0.0, 0.0, 0.0};
       for (std::size_t li : st.rayLamps) {
@@ -493,7 +500,6 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
         const double l = ev.evaluate(ray);
         for (int c = 0; c < 3; ++c) acc[c] += l * ev.lamp().color[c];
       }
-      float* known = sc.mlActive ? sc.ml.data() + k * f.nq : nullptr;
       for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
         if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q]) {
           if (known) known[q] = 0.0f;
@@ -1403,15 +1409,16 @@ std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool, std::si
     const struct {
       const PencilAirlight* pa;
       const Camera* cam;
+      PixelRays rays;
       int* out;
       int nx, step;
-    } grid{&pa, &cam, st.gridSpokes.data(), nx, kStep};
+    } grid{&pa, &cam, PixelRays(cam), st.gridSpokes.data(), nx, kStep};
     const auto* gp = &grid;
     pool.parallelFor(static_cast<std::size_t>(ny), [gp](std::size_t row) {
       const int j = static_cast<int>(row);
       for (int i = 0; i < gp->nx; ++i) {
         const double x = std::min(i * gp->step, gp->cam->width - 1) + 0.5, y = std::min(j * gp->step, gp->cam->height - 1) + 0.5;
-        gp->out[row * static_cast<std::size_t>(gp->nx) + static_cast<std::size_t>(i)] = gp->pa->spokeOf(gp->cam->rayDirection(x, y));
+        gp->out[row * static_cast<std::size_t>(gp->nx) + static_cast<std::size_t>(i)] = gp->pa->spokeOf(gp->rays.direction(x, y));
       }
     });
     st.spokeMask.assign(static_cast<std::size_t>(n), 0);
@@ -1532,7 +1539,7 @@ FrameCtx planImage(const State& st, const Lamps& lamps, const Scene& scene, cons
   FrameCtx f{&st, &lamps, &cam, &surface, &out,
              kernels::PixelGeometry{static_cast<float>(cf.principal.x), static_cast<float>(cf.principal.y),
                                     static_cast<float>(1.0 / cf.focal)},
-             &opt};
+             &opt, PixelRays(cam)};
   f.step = opt.coarse_step > 0 ? std::max(2, opt.coarse_step) : autoCoarseStep(cam);
   // Distance edges wholly beyond d_far, where the fog's transmittance e^{−K_t d} is below
   // edge_transmittance, are ignored: whatever lies behind them reaches the eye dimmed by at

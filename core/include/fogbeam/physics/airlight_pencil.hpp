@@ -154,10 +154,16 @@ class PencilAirlight {
   // Per spoke: its pieces and its state (0 not sampled, 1 being sampled, 2 ready). Filled
   // lazily from const evaluation calls, hence mutable; the state orders the accesses.
   mutable std::vector<std::vector<Piece>> pieces_;
+  /// Per spoke: a bound of |I| along it (cd; from its pieces), for the tail test of rays.
+  mutable std::vector<double> spokeBound_;
   /// Per spoke, with kernel_expansion: ∫_0^π β_r I_s dψ for every basis function r, then for
   /// every knot t_j the three ∫_0^{t_j} β_{j+i} I_s dψ, i = 0, 1, 2 (the functions that straddle it).
   mutable std::vector<std::vector<float>> projections_;
   std::shared_ptr<const detail::KernelTable> kernel_;
+  /// The kernel table at this pencil's τ (KernelTable::sliceAt), refreshed by reset(): rays
+  /// read two rows of it per ray instead of four of the whole table. Empty beyond kTauMax.
+  std::vector<float> sliceRows_;
+  std::vector<int> sliceCuts_;
   /// cos and sin of the multiples of piece_deg / 2, where most samples of a spoke fall (ends
   /// and middles of the grid pieces): sampling saves a sincos per sample.
   std::vector<double> gridCos_, gridSin_;

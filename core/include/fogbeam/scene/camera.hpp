@@ -74,4 +74,19 @@ struct Camera {
   [[nodiscard]] double fovY() const noexcept;
 };
 
+/// Camera::rayDirection for many pixels: the focal length and the principal point (a tangent
+/// each per call) computed once. The same arithmetic as rayDirection, so the same bits.
+/// Immutable once built (thread-safe); unaffected by later changes to the camera.
+struct PixelRays {
+  explicit PixelRays(const Camera& c) noexcept
+      : focal_px(c.focalLengthPixels()), centre_px(c.principalPoint()), worldFromCamera(c.worldFromCamera) {}
+  /// The unit world direction through image point (x, y), pixels (pixel centres at +0.5).
+  [[nodiscard]] Vec3 direction(double x, double y) const noexcept {
+    return glm::normalize(worldFromCamera * Vec3(focal_px, centre_px.x - x, centre_px.y - y));
+  }
+  double focal_px;
+  Vec2 centre_px;
+  Mat3 worldFromCamera;
+};
+
 }  // namespace fogbeam
