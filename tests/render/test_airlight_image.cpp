@@ -278,6 +278,15 @@ TEST(AirlightImage, MovingLatticeAgainstEveryCoarseNode) {
   EXPECT_LT(m.with, m.without * 4 / 5);
 }
 
+// The lattice's second level (SubsamplingOptions::moving_lattice_levels = 2): cells of 4 × 4
+// coarse blocks tested at their centres first, against the first level alone. Fewer
+// evaluations, and the error against every pixel evaluated within the first level's + 2e-3.
+TEST(AirlightImage, MovingLatticeSecondLevelAgainstTheFirstAlone) {
+  const MovingInterpolation m =
+      compareMovingInterpolation("lattice level 2", SubsamplingOptions{.moving_lattice_levels = 1}, nullptr);
+  EXPECT_LT(m.with, m.without);
+}
+
 // Moving lamps across silhouettes (SubsamplingOptions::moving_layers): the car seen between
 // posts 12 m from the eye and behind a box 30 m away (distances written into the surface buffer:
 // the airlight reads nothing else), with and without interpolating its light in the centre's

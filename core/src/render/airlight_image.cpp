@@ -206,6 +206,8 @@ struct AirlightImageEvaluator::State {
   // Per super-cell of the moving lamps' lattice (FrameCtx::superX × superY, row-major) and moving
   // lamp: 1 where that lamp is interpolated over the super-cell (evaluateCoarseGrid).
   std::vector<std::uint8_t> superPass;
+  // The same per cell of the lattice's second level (FrameCtx::hyperX × hyperY, 4 × 4 blocks).
+  std::vector<std::uint8_t> hyperPass;
   std::size_t scratchBatch = 0, scratchTile = 0, scratchNq = 0;
 };
 
@@ -351,6 +353,9 @@ struct FrameCtx {
   // The moving lamps' lattice (SubsamplingOptions::moving_lattice): super-cells of 2 × 2 coarse
   // blocks, superX × superY of them whole (0 when off).
   int superX = 0, superY = 0;
+  // Its second level (SubsamplingOptions::moving_lattice_levels = 2): cells of 4 × 4 coarse
+  // blocks, hyperX × hyperY of them whole (0 when off).
+  int hyperX = 0, hyperY = 0;
   std::size_t idx(int i, int j) const {
     return static_cast<std::size_t>(j) * static_cast<std::size_t>(cam->width) + static_cast<std::size_t>(i);
   }
@@ -366,6 +371,14 @@ struct FrameCtx {
   bool movingAnchor(int ci, int cj) const {
     if (superX == 0 || ci > 2 * superX || cj > 2 * superY) return true;
     return (ci % 2) == (cj % 2);
+  }
+  // Whether node (ci, cj) is inside the second level's whole cells.
+  bool inHyper(int ci, int cj) const { return hyperX > 0 && ci <= 4 * hyperX && cj <= 4 * hyperY; }
+  // Whether the coarse stage's first pass evaluates the moving lamps at node (ci, cj): inside
+  // the second level's cells at their corners and centres only, elsewhere movingAnchor.
+  bool firstPassAnchor(int ci, int cj) const {
+    if (!inHyper(ci, cj)) return movingAnchor(ci, cj);
+    return ((ci % 4) == 0 && (cj % 4) == 0) || ((ci % 4) == 2 && (cj % 4) == 2);
   }
 };
 
@@ -833,6 +846,19 @@ float superBilinear(const FrameCtx& f, const AirlightImageEvaluator::State& st, 
                                static_cast<std::size_t>(ci)) + q];
   };
   return (1 - v) * ((1 - u) * at(c0, r0) + u * at(c0 + 2, r0)) + v * ((1 - u) * at(c0, r0 + 2) + u * at(c0 + 2, r0 + 2));
+}
+
+// The same over a cell (a, b) of the lattice's second level (4 × 4 coarse blocks).
+float hyperBilinear(const FrameCtx& f, const AirlightImageEvaluator::State& st, int a, int b, std::size_t q, int i, int j) {
+  const int c0 = 4 * a, r0 = 4 * b;
+  const int x0 = f.nodeX(c0), x4 = f.nodeX(c0 + 4), y0 = f.nodeY(r0), y4 = f.nodeY(r0 + 4);
+  const float u = static_cast<float>(i - x0) / static_cast<float>(x4 - x0);
+  const float v = static_cast<float>(j - y0) / static_cast<float>(y4 - y0);
+  auto at = [&](int ci, int cj) {
+    return st.coarseMl[f.nq * (static_cast<std::size_t>(cj) * static_cast<std::size_t>(f.coarseX) +
+                               static_cast<std::size_t>(ci)) + q];
+  };
+  return (1 - v) * ((1 - u) * at(c0, r0) + u * at(c0 + 4, r0)) + v * ((1 - u) * at(c0, r0 + 4) + u * at(c0 + 4, r0 + 4));
 }
 
 // The share of a block's tolerance (of its centre's whole luminance) that the moving lamps
@@ -1559,6 +1585,11 @@ FrameCtx planImage(const State& st, const Lamps& lamps, const Scene& scene, cons
       f.superX = (f.coarseX - 1) / 2;
       f.superY = (f.coarseY - 1) / 2;
       if (f.superX == 0 || f.superY == 0) f.superX = f.superY = 0;
+      if (f.superX > 0 && opt.moving_lattice_levels >= 2) {
+        f.hyperX = (f.coarseX - 1) / 4;
+        f.hyperY = (f.coarseY - 1) / 4;
+        if (f.hyperX == 0 || f.hyperY == 0) f.hyperX = f.hyperY = 0;
+      }
     }
   }
   return f;
@@ -1623,6 +1654,122 @@ void evaluateFullTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
   const ImageJob job{&st, &f};
   const ImageJob* jp = &job;
   pool.parallelForIndexed(tileCount(f), [jp](std::size_t t, unsigned w) { fullTile(*jp->f, jp->st->scratch[w], t); });
+}
+
+// The lattice's second level (SubsamplingOptions::moving_lattice_levels = 2), before
+// movingLattice. The first pass evaluated the moving lamps, inside whole cells of 4 × 4 coarse
+// blocks, at the cells' corners and centres only. A cell passes for a lamp on the test of
+// movingLattice one level up: no lamp imaged within lamp_guard_px + 4 coarse steps of it (near
+// a lamp's image its light has structure a test at one centre per 32 px could miss), its 25
+// nodes and 16 block centres in the centre's distance layer, and the lamp's value at its centre
+// the bilinear prediction from its corners within what grantBudget grants. Then the first
+// level's anchors inside the cell (the corners and centres of its 2 × 2 super-cells) take that
+// interpolation where the cell passes (those on a side where a cell on either side passes: the
+// interpolation along a side is linear between its corners from both), else they are
+// evaluated; movingLattice then judges the super-cells as before (inside a passing cell they
+// pass: their values are one bilinear function).
+void hyperLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
+  const std::size_t nq = f.nq;
+  st.hyperPass.assign(static_cast<std::size_t>(f.hyperX) * static_cast<std::size_t>(f.hyperY) * nq, 0);
+  const ImageJob job{&st, &f};
+  const ImageJob* jp = &job;
+  pool.parallelForIndexed(static_cast<std::size_t>(f.hyperY), [jp](std::size_t row, unsigned w) {
+    const FrameCtx& fc = *jp->f;
+    State& s = *jp->st;
+    const std::size_t m = fc.nq;
+    const int b = static_cast<int>(row);
+    const double guard = static_cast<double>(fc.opt->lamp_guard_px + 4 * fc.step);
+    for (int a = 0; a < fc.hyperX; ++a) {
+      const int x0 = fc.nodeX(4 * a), x4 = fc.nodeX(4 * a + 4), y0 = fc.nodeY(4 * b), y4 = fc.nodeY(4 * b + 4);
+      bool ok = true;
+      for (const auto& [lx, ly] : s.lampPixels)
+        if (lx >= x0 - guard && lx <= x4 + 1 + guard && ly >= y0 - guard && ly <= y4 + 1 + guard) ok = false;
+      const int xc = fc.nodeX(4 * a + 2), yc = fc.nodeY(4 * b + 2);
+      const float qc = inverseDistanceAt(fc, xc, yc);
+      for (int cj = 4 * b; cj <= 4 * b + 4 && ok; ++cj)
+        for (int ci = 4 * a; ci <= 4 * a + 4 && ok; ++ci) {
+          const int i = fc.nodeX(ci), j = fc.nodeY(cj);
+          ok = sameLayer(inverseDistanceAt(fc, i, j), qc, fc.edgeFloor);
+          if (ok && ci < 4 * a + 4 && cj < 4 * b + 4)  // the block centre to its lower right
+            ok = sameLayer(inverseDistanceAt(fc, i + (fc.nodeX(ci + 1) - i) / 2, j + (fc.nodeY(cj + 1) - j) / 2), qc,
+                           fc.edgeFloor);
+        }
+      if (!ok) continue;
+      const std::size_t centre = static_cast<std::size_t>(4 * b + 2) * static_cast<std::size_t>(fc.coarseX) +
+                                 static_cast<std::size_t>(4 * a + 2);
+      const float* cp = s.coarse.data() + 3 * centre;
+      const float budget = kMovingShare * (static_cast<float>(fc.opt->rel_tolerance) * (cp[0] + cp[1] + cp[2]) +
+                                           static_cast<float>(fc.opt->abs_tolerance_cd_m2));
+      Scratch& sc = s.scratch[w];
+      for (std::size_t q = 0; q < m; ++q)
+        sc.dev[q] = std::abs(s.coarseMl[centre * m + q] - hyperBilinear(fc, s, a, b, q, xc, yc)) * fc.mlLum[q];
+      grantBudget(sc, m, budget);
+      std::copy_n(sc.grant.data(), m,
+                  s.hyperPass.data() + (static_cast<std::size_t>(b) * static_cast<std::size_t>(fc.hyperX) + static_cast<std::size_t>(a)) * m);
+    }
+  });
+  // The first level's anchors that the first pass left: interpolated per lamp where their cell
+  // (or, on a side, a cell either side) passes, else evaluated; added to the coarse grid.
+  const std::size_t nCoarse = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
+  pool.parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
+    const FrameCtx& fc = *jp->f;
+    State& s = *jp->st;
+    Scratch& sc = s.scratch[w];
+    const std::size_t m = fc.nq;
+    const std::size_t b0 = c * kChunk;
+    const std::size_t e = std::min(b0 + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
+    auto passes = [&](int a, int b, std::size_t q) {
+      return a >= 0 && b >= 0 && a < fc.hyperX && b < fc.hyperY &&
+             s.hyperPass[(static_cast<std::size_t>(b) * static_cast<std::size_t>(fc.hyperX) + static_cast<std::size_t>(a)) * m + q] != 0;
+    };
+    auto ml = [&](int ci, int cj) {
+      return s.coarseMl.data() + m * (static_cast<std::size_t>(cj) * static_cast<std::size_t>(fc.coarseX) + static_cast<std::size_t>(ci));
+    };
+    sc.n = 0;
+    for (std::size_t k = b0; k < e; ++k) {
+      const int ci = static_cast<int>(k % static_cast<std::size_t>(fc.coarseX));
+      const int cj = static_cast<int>(k / static_cast<std::size_t>(fc.coarseX));
+      if (!fc.inHyper(ci, cj) || !fc.movingAnchor(ci, cj) || fc.firstPassAnchor(ci, cj)) continue;
+      const int i = fc.nodeX(ci), j = fc.nodeY(cj);
+      float* known = sc.ml.data() + sc.n * m;
+      for (std::size_t q = 0; q < m; ++q) {
+        known[q] = std::numeric_limits<float>::quiet_NaN();
+        if (ci % 2 == 1) {  // a super-cell's centre: inside one cell
+          if (passes(ci / 4, cj / 4, q)) known[q] = hyperBilinear(fc, s, ci / 4, cj / 4, q, i, j);
+        } else if (ci % 4 == 0) {  // on a cell's vertical side, between (ci, cj − 2) and (ci, cj + 2)
+          if (!passes(ci / 4 - 1, cj / 4, q) && !passes(ci / 4, cj / 4, q)) continue;
+          const int ya = fc.nodeY(cj - 2), yb = fc.nodeY(cj + 2);
+          const float v = static_cast<float>(j - ya) / static_cast<float>(yb - ya);
+          known[q] = (1 - v) * ml(ci, cj - 2)[q] + v * ml(ci, cj + 2)[q];
+        } else {  // on a horizontal side, between (ci − 2, cj) and (ci + 2, cj)
+          if (!passes(ci / 4, cj / 4 - 1, q) && !passes(ci / 4, cj / 4, q)) continue;
+          const int xa = fc.nodeX(ci - 2), xb = fc.nodeX(ci + 2);
+          const float u = static_cast<float>(i - xa) / static_cast<float>(xb - xa);
+          known[q] = (1 - u) * ml(ci - 2, cj)[q] + u * ml(ci + 2, cj)[q];
+        }
+      }
+      sc.x[sc.n] = static_cast<float>(i) + 0.5f;
+      sc.y[sc.n] = static_cast<float>(j) + 0.5f;
+      sc.d[sc.n] = fc.surf->distance[fc.idx(i, j)];
+      sc.slot[sc.n] = static_cast<std::uint32_t>(k - b0);
+      ++sc.n;
+    }
+    if (sc.n == 0) return;
+    sc.mlActive = true;
+    sc.movingOnly = true;
+    evaluateBatch(fc, sc);
+    sc.movingOnly = false;
+    sc.mlActive = false;
+    for (std::size_t k = 0; k < sc.n; ++k) {
+      const std::size_t node = b0 + sc.slot[k];
+      float* p = s.coarse.data() + 3 * node;
+      p[0] += sc.r[k];
+      p[1] += sc.g[k];
+      p[2] += sc.b[k];
+      std::copy_n(sc.ml.data() + k * m, m, s.coarseMl.data() + node * m);
+    }
+    sc.n = 0;
+  });
 }
 
 // The coarse grid's second pass for the moving lamps' lattice (SubsamplingOptions::
@@ -1780,8 +1927,8 @@ void evaluateCoarseGrid(State& st, const FrameCtx& f, ThreadPool& pool) {
         const std::size_t node = b + sc.slot[k];
         const int ci = static_cast<int>(node % static_cast<std::size_t>(fc.coarseX));
         const int cj = static_cast<int>(node / static_cast<std::size_t>(fc.coarseX));
-        // Not at an anchor: the moving lamps come in the lattice's second pass.
-        if (!fc.movingAnchor(ci, cj)) std::fill_n(sc.ml.data() + k * nq, nq, 0.0f);
+        // Not at an anchor: the moving lamps come in the lattice's later passes.
+        if (!fc.firstPassAnchor(ci, cj)) std::fill_n(sc.ml.data() + k * nq, nq, 0.0f);
       }
     evaluateBatch(fc, sc);
     sc.mlActive = false;
@@ -1795,6 +1942,7 @@ void evaluateCoarseGrid(State& st, const FrameCtx& f, ThreadPool& pool) {
     }
     sc.n = 0;
   });
+  if (f.hyperX > 0) hyperLattice(st, f, pool);
   if (f.superX > 0) movingLattice(st, f, pool);
 }
 

@@ -74,6 +74,12 @@ struct SubsamplingOptions {
   /// the tolerance), no lamp is imaged in it and its coarse nodes and block centres lie in one
   /// distance layer. false: every coarse node and block centre evaluates every moving lamp.
   bool moving_lattice = true;
+  /// With moving_lattice, a second level first: cells of 4 × 4 coarse blocks evaluated at their
+  /// corners and centres only, and the first level's nodes inside a cell interpolated from its
+  /// corners where the same test passes at its centre (no lamp imaged within lamp_guard_px + 4
+  /// coarse steps of it, its 25 nodes and 16 block centres in one distance layer). 1: the first
+  /// level alone (every super-cell's corners and centre evaluated).
+  int moving_lattice_levels = 2;
   /// Moving lamps in a block split across a distance edge (a silhouette): interpolated in the
   /// centre's layer where the lamp's value there matches the prediction from the corners in that
   /// layer (the block test, with what the lamp is granted of the tolerance); pixels of other layers are
