@@ -5,13 +5,21 @@
 # Prints the service's status lines (every 5 s: frames, fps, frame p50/p95 and its surface and
 # airlight parts); the first window includes start-up (view tables, shader compilation).
 #
-#   scripts/cab_fps.sh [WIDTHxHEIGHT] [SECONDS]     default 1280x720, 30 s
+# OVERLAP (auto, on, off; default auto) sets [render] overlap_frames: "on" runs the surface pass of
+# frame N+1 beside the rest of frame N (docs/service.md, "Overlapped frames"), "off" in sequence;
+# compare the two alternately in one session (this machine's speed drifts by ±20 %).
 #
-# Needs a release build (cmake --preset release && cmake --build --preset release).
+#   scripts/cab_fps.sh [WIDTHxHEIGHT] [SECONDS] [OVERLAP]    default 1280x720, 30 s, auto
+#
+# Needs a release build (cmake --preset release && cmake --build --preset release); FOGBEAM
+# names another binary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size="${1:-1280x720}"
 seconds="${2:-30}"
+overlap="${3:-auto}"
+case "$overlap" in auto | on | off) ;; *) echo "cab_fps.sh: OVERLAP is auto, on or off, not '$overlap'" >&2; exit 2 ;; esac
+fogbeam="${FOGBEAM:-./build/release/plugin/fogbeam}"
 width="${size%x*}"
 height="${size#*x}"
 config="$(mktemp --suffix=.toml)"
@@ -25,5 +33,5 @@ height = $height
 fov_x_deg = 60.0
 format = "rgba8-srgb"
 EOF
-exec ./build/release/plugin/fogbeam serve --config "$config" --duration "$seconds" --rate 1000 \
+exec "$fogbeam" serve --config "$config" --duration "$seconds" --rate 1000 --overlap "$overlap" \
   --channel-prefix "fps-$$-" --udp-port 0 --status-port 0 2>&1 | grep --line-buffered "serve:"

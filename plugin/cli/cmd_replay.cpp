@@ -7,6 +7,9 @@
 //
 // Deterministic: simulation time is k / fps, never the wall clock; tables are awaited (no
 // background builds); so the same scenario and configuration give the same frames, byte for byte.
+// Overlapped frames ([render] overlap_frames, --overlap; FramePipeline::submit): replay knows
+// every state in advance, so the surface pass of frame k+1 always runs beside the rest of frame
+// k; the frames are the same bytes.
 #include "cmd_replay.hpp"
 #include "exr_writer.hpp"
 #include "png_writer.hpp"
@@ -28,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -77,8 +81,8 @@ void paste(const png::RgbImage& src, png::RgbImage& sheet, int x0, int y0, int w
 
 /// Replay's end of the frame pipeline: each frame into frame_NNNNN.exr / .png, a thumbnail for
 /// the contact sheet, a frames.csv row (and, with glow or glare on, effects_lamps.csv rows), and
-/// the figures of the summary and timing.json. One channel; at(k, t) before each step says
-/// which frame it is.
+/// the figures of the summary and timing.json. One channel; the bookkeeping's frame number is
+/// the frame index k, its simulation time start + k / fps.
 class FileSink final : public plugin::FrameSink {
  public:
   FileSink(const ReplayOptions& o, bool effects) : o_(o), effects_(effects) {
@@ -93,14 +97,15 @@ class FileSink final : public plugin::FrameSink {
               << (effects_ ? ",eye_illuminance_lx,veiling_luminance_cd_m2,glow_ms,glare_ms" : "") << "\n";
   }
 
-  /// The next frame is frame `k`, at simulation time `t_s`.
-  void at(std::size_t k, double t_s) {
-    k_ = k;
-    t_ = t_s;
-  }
-
-  Status consume(std::size_t, const plugin::RenderedFrame& frame, const plugin::FrameBookkeeping&) override {
+  Status consume(std::size_t, const plugin::RenderedFrame& frame, const plugin::FrameBookkeeping& book) override {
     const auto b = Clock::now();
+    // Frames arrive one submit late when they overlap: which one this is, from its bookkeeping.
+    k_ = static_cast<std::size_t>(book.frame);
+    t_ = o_.start_s + static_cast<double>(k_) / o_.fps;
+    // The wall time between frames handed over: the replay's frame period (throughput), which
+    // overlapping shortens while each frame's own stage times grow.
+    if (lastHanded_) intervalMs.push_back(std::chrono::duration<double, std::milli>(b - *lastHanded_).count());
+    lastHanded_ = b;
     char name[64];
     std::snprintf(name, sizeof name, "frame_%05zu", k_);
     const fs::path base = fs::path(o_.out) / name;
@@ -160,6 +165,7 @@ class FileSink final : public plugin::FrameSink {
   // Per frame, in order: ms (renderer's total, table wait, surface, airlight; file writing),
   // and with glow or glare on lx, cd/m², ms.
   std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs, glowMs, glareMs, eyeLux, veiling;
+  std::vector<double> intervalMs;  ///< ms between successive frames handed to the sink (frames − 1)
   std::vector<png::RgbImage> thumbs;  ///< the PNG images, for the contact sheet
   std::vector<double> exposureEv;     ///< each PNG's exposure, EV
 
@@ -171,6 +177,7 @@ class FileSink final : public plugin::FrameSink {
   double t_ = 0.0;
   ExposureAdaptation adaptation_;
   double previousT_ = 0.0;
+  std::optional<Clock::time_point> lastHanded_;
 };
 
 int fail(const std::string& what) {
@@ -187,6 +194,7 @@ int runReplay(const ReplayOptions& o) {
   if (!o.method.empty()) settings.push_back("render.method=\"" + o.method + "\"");
   if (o.full) settings.push_back("render.subsampling=false");
   if (!o.surface.empty()) settings.push_back("render.surface=\"" + o.surface + "\"");
+  if (!o.overlap.empty()) settings.push_back("render.overlap_frames=\"" + o.overlap + "\"");
   settings.push_back("world.scenario=\"\"");
   auto cfg = plugin::loadServiceConfig(o.config, settings);
   if (!cfg) return fail(cfg.error().message);
@@ -223,11 +231,13 @@ int runReplay(const ReplayOptions& o) {
   const double end = o.end_s >= 0.0 ? std::min(o.end_s, scenario->duration_s) : scenario->duration_s;
   const auto count = static_cast<std::size_t>(std::floor((end - o.start_s) * o.fps + 1e-9)) + 1;
   const plugin::ChannelConfig& ch = cfg->channels[channel];
+  const bool overlapped = (*pipeline)->overlapping();
   std::printf("fogbeam replay: %s (%s), %.2f s at %.3g fps = %zu frames, %dx%d, method %s (%s), glow %s, glare %s, "
-              "into %s\n",
+              "frames %s, into %s\n",
               scenario->name.c_str(), o.scenario.c_str(), end - o.start_s, o.fps, count, ch.width, ch.height,
               cfg->method.c_str(), std::string(toString(cfg->effects.render.airlight)).c_str(),
-              cfg->effects.glow.enabled ? "on" : "off", cfg->effects.glare.enabled ? "on" : "off", o.out.c_str());
+              cfg->effects.glow.enabled ? "on" : "off", cfg->effects.glare.enabled ? "on" : "off",
+              overlapped ? "overlapped" : "in sequence", o.out.c_str());
   std::fflush(stdout);
 
   ipc::StateStore store;
@@ -243,11 +253,14 @@ int runReplay(const ReplayOptions& o) {
     const auto now = Clock::now();
     plugin::applyState(plugin::evaluate(*scenario, t), store, sequence, now);
     const auto snap = store.snapshot();
-    sink.at(k, t);
     plugin::FrameBookkeeping book;
     book.frame = k;
-    if (Status s = (*pipeline)->step(*snap, now, book, sink); !s) return fail(s.error().message);
-    const double total = sink.totalMs.back();
+    // Overlapped: this state's surfaces beside the previous frame's rest, which is written.
+    if (Status s = (*pipeline)->submit(*snap, now, book, sink); !s) return fail(s.error().message);
+    if (k + 1 == count) {
+      if (Status s = (*pipeline)->flush(sink); !s) return fail(s.error().message);
+    }
+    const double total = sink.totalMs.empty() ? 0.0 : sink.totalMs.back();
     // Progress: a bar redrawn in place on a terminal, a line per 10 % in logs.
     const double done = static_cast<double>(k + 1) / static_cast<double>(count);
     const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -280,6 +293,10 @@ int runReplay(const ReplayOptions& o) {
               static_cast<double>(count) / wall);
   std::printf("  frame time      median %.1f ms, p95 %.1f ms, max %.1f ms\n", percentile(sink.totalMs, 0.5),
               percentile(sink.totalMs, 0.95), percentile(sink.totalMs, 1.0));
+  // The period: what a cab sees (frames/s = 1000 / it); with overlap shorter than the frame time.
+  std::printf("  frame interval  median %.1f ms (%.2f frames/s), p95 %.1f ms; frames %s\n", percentile(sink.intervalMs, 0.5),
+              sink.intervalMs.empty() ? 0.0 : 1e3 / percentile(sink.intervalMs, 0.5), percentile(sink.intervalMs, 0.95),
+              overlapped ? "overlapped" : "in sequence");
   std::printf("  of which        table builds (fog/rig changes) median %.1f ms, max %.1f ms; surface median %.1f ms; "
               "airlight median %.1f ms\n",
               percentile(sink.waitMs, 0.5), percentile(sink.waitMs, 1.0), percentile(sink.surfaceMs, 0.5), percentile(sink.airMs, 0.5));
@@ -300,7 +317,9 @@ int runReplay(const ReplayOptions& o) {
   json << "{\"scenario\": \"" << scenario->name << "\", \"frames\": " << count << ", \"fps\": " << o.fps
        << ", \"width\": " << ch.width << ", \"height\": " << ch.height << ", \"method\": \"" << cfg->method
        << "\", \"wall_s\": " << wall << ", \"frame_ms_median\": " << percentile(sink.totalMs, 0.5)
-       << ", \"frame_ms_p95\": " << percentile(sink.totalMs, 0.95) << ", \"table_ms_max\": " << percentile(sink.waitMs, 1.0);
+       << ", \"frame_ms_p95\": " << percentile(sink.totalMs, 0.95) << ", \"table_ms_max\": " << percentile(sink.waitMs, 1.0)
+       << ", \"interval_ms_median\": " << percentile(sink.intervalMs, 0.5)
+       << ", \"overlap_frames\": " << (overlapped ? "true" : "false");
   if (effects) {
     json << ", \"glow_ms_median\": " << percentile(sink.glowMs, 0.5) << ", \"glare_ms_median\": " << percentile(sink.glareMs, 0.5)
          << ", \"eye_illuminance_lx_max\": " << percentile(sink.eyeLux, 1.0)

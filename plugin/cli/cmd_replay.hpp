@@ -42,6 +42,9 @@ struct ReplayOptions {
   int sheetWidth = 1536;
   /// --surface: auto | gl | cpu; empty (default): the config's.
   std::string surface;
+  /// --overlap: auto | on | off, frame overlap ([render] overlap_frames); empty (default): the
+  /// config's ("auto").
+  std::string overlap;
   /// --width, --height: image size, px; 0 (default): the channel's (height: width · 9/16 when
   /// only the width is given).
   int width = 0, height = 0;

@@ -55,6 +55,7 @@ int runServe(const ServeOptions& o) {
   if (o.udpPort >= 0) settings.push_back("input.udp.port=" + std::to_string(o.udpPort));
   if (o.statusPort >= 0) settings.push_back("status.udp_port=" + std::to_string(o.statusPort));
   if (!o.surface.empty()) settings.push_back("render.surface=\"" + o.surface + "\"");
+  if (!o.overlap.empty()) settings.push_back("render.overlap_frames=\"" + o.overlap + "\"");
   if (o.viewTableStepDeg > 0) settings.push_back("render.view_table_step_deg=" + std::to_string(o.viewTableStepDeg));
   if (o.threads > 0) settings.push_back("render.threads=" + std::to_string(o.threads));
   auto loaded = plugin::loadServiceConfig(o.config, settings);

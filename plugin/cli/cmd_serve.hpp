@@ -32,6 +32,7 @@ struct ServeOptions {
   int udpPort = -1;               ///< --udp-port: input.udp.port (0 = any free port)
   int statusPort = -1;            ///< --status-port: status.udp_port (0 = off)
   std::string surface;            ///< --surface: render.surface, auto | gl | cpu
+  std::string overlap;            ///< --overlap: render.overlap_frames, auto | on | off
   double viewTableStepDeg = 0.0;  ///< --view-table-step: render.view_table_step_deg, degrees
   unsigned threads = 0;           ///< --threads: render.threads
 };

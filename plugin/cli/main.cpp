@@ -226,6 +226,8 @@ void addServeCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--udp-port", o->udpPort, "= --set input.udp.port=… (0 = any free port)")->check(CLI::Range(0, 65535));
   sub->add_option("--status-port", o->statusPort, "= --set status.udp_port=… (0 = off)")->check(CLI::Range(0, 65535));
   sub->add_option("--surface", o->surface, "= --set render.surface=…")->check(CLI::IsMember({"auto", "gl", "cpu"}));
+  sub->add_option("--overlap", o->overlap, "= --set render.overlap_frames=… (auto | on | off)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   sub->add_option("--view-table-step", o->viewTableStepDeg, "= --set render.view_table_step_deg=…")
       ->check(CLI::Range(0.05, 5.0));
   sub->add_option("--threads", o->threads, "= --set render.threads=…");
@@ -260,6 +262,10 @@ void addReplayCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--height", o->height, "image height, px (default: width · 9/16 when --width is given)")
       ->check(CLI::Range(9, 16384));
   sub->add_option("--surface", o->surface, "auto | gl | cpu (default: the config's)")->check(CLI::IsMember({"auto", "gl", "cpu"}));
+  sub->add_option("--overlap", o->overlap,
+                  "the surface pass of frame k+1 beside the rest of frame k: auto (where cores allow) | on | off "
+                  "(default: the config's [render] overlap_frames); the frames are the same bytes")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   sub->callback([o, &exitCode] { exitCode = runReplay(*o); });
 }
 

@@ -23,6 +23,31 @@ Result<SurfacePass> openSurfacePass(const ServiceConfig& config) {
   return pass;
 }
 
+bool overlapsFrames(const ServiceConfig& config) {
+  if (std::any_of(config.channels.begin(), config.channels.end(), [](const ChannelConfig& c) { return !c.depth_from.empty(); }))
+    return false;
+  if (config.overlap_frames == "on") return true;
+  if (config.overlap_frames == "off") return false;
+  // "auto": where cores are left over while the frame in sequence keeps its cores busy. On 2
+  // cores it does not pay (docs/service.md, "Overlapped frames": no more frames per second,
+  // latency ×1.8, the two halves' thread pools contending for the same cores); the estimate for
+  // 8 cores is ~30 % more frames. threads = 1 asks for one core.
+  return std::thread::hardware_concurrency() >= kOverlapMinCores && config.threads != 1;
+}
+
+namespace {
+
+/// The arrival of the newest message a state holds (input-to-frame latency starts there);
+/// the epoch when it holds none.
+ipc::Clock::time_point newestInput(const ipc::SimSnapshot& state) {
+  ipc::Clock::time_point newest{};
+  for (const ipc::Stamp* s : {&state.ego.stamp, &state.lamps.stamp, &state.environment.stamp, &state.frame_request.stamp})
+    if (s->valid) newest = std::max(newest, s->received);
+  return newest;
+}
+
+}  // namespace
+
 Result<std::unique_ptr<FramePipeline>> FramePipeline::create(ServiceConfig config, const Scene& world,
                                                              std::unique_ptr<GlSurfacePass> gl, bool awaitTables) {
   std::unique_ptr<FramePipeline> p(new FramePipeline());
@@ -36,17 +61,147 @@ Result<std::unique_ptr<FramePipeline>> FramePipeline::create(ServiceConfig confi
     if (!r) return r.error();
     p->renderers_.push_back(std::move(r).value());
   }
+  p->overlap_ = overlapsFrames(p->config_);
+  if (p->overlap_) {
+    for (auto& set : p->frames_) set.resize(p->renderers_.size());
+    p->worker_ = std::thread([q = p.get()] { q->workerLoop(); });
+  }
   return p;
 }
 
-FramePipeline::~FramePipeline() = default;
+FramePipeline::~FramePipeline() {
+  if (worker_.joinable()) {
+    {
+      std::lock_guard lock(mutex_);
+      quit_ = true;
+    }
+    wake_.notify_all();
+    worker_.join();  // after the frame in flight's finish(), when one runs
+  }
+}
+
+void FramePipeline::workerLoop() {
+  std::unique_lock lock(mutex_);
+  while (true) {
+    wake_.wait(lock, [&] { return quit_ || jobQueued_; });
+    if (!jobQueued_) return;  // quit, nothing queued
+    std::vector<RenderedFrame>& frames = frames_[flightBuffer_];
+    lock.unlock();
+    // Stages 4–6 of the frame in flight, channel by channel, into its set of buffers; stops at
+    // the first error. No GL, no sink here (ChannelRenderer::finish).
+    std::optional<Error> error;
+    std::size_t channel = 0;
+    for (std::size_t c = 0; c < renderers_.size() && !error; ++c) {
+      try {
+        if (Status s = renderers_[c]->finish(frames[c]); !s) error = s.error();
+      } catch (const std::exception& e) {
+        // On this thread an exception would end the process; in sequence it reaches the caller.
+        error = Error{std::string("frame renderer: ") + e.what()};
+      }
+      if (error) channel = c;
+    }
+    lock.lock();
+    jobError_ = std::move(error);
+    jobChannel_ = channel;
+    jobQueued_ = false;
+    wake_.notify_all();
+  }
+}
+
+void FramePipeline::waitForWorker() {
+  if (!worker_.joinable()) return;
+  std::unique_lock lock(mutex_);
+  wake_.wait(lock, [&] { return !jobQueued_; });
+}
+
+Status FramePipeline::stopWith(Error e, std::size_t channel, std::size_t* failedChannel) {
+  waitForWorker();
+  if (!stopped_) {
+    stopped_ = e;
+    stoppedChannel_ = channel;
+  }
+  if (failedChannel) *failedChannel = channel;
+  return e;
+}
+
+Status FramePipeline::handOver(std::size_t buffer, FrameBookkeeping book, ipc::Clock::time_point newest,
+                               FrameSink& sink, std::size_t* failedChannel) {
+  for (std::size_t c = 0; c < renderers_.size(); ++c) {
+    // Latency to the frame's hand-over: in flight it also waited for the next frame's surfaces.
+    book.latency_ms.reset();
+    if (newest != ipc::Clock::time_point{})
+      book.latency_ms = std::chrono::duration<double, std::milli>(ipc::Clock::now() - newest).count();
+    if (Status s = sink.consume(c, frames_[buffer][c], book); !s) return stopWith(s.error(), c, failedChannel);
+  }
+  ++handed_;
+  return Ok{};
+}
+
+Status FramePipeline::flush(FrameSink& sink, std::size_t* failedChannel) {
+  if (stopped_) return stopWith(*stopped_, stoppedChannel_, failedChannel);
+  if (!inFlight_) return Ok{};
+  waitForWorker();
+  inFlight_ = false;
+  if (jobError_) return stopWith(*jobError_, jobChannel_, failedChannel);
+  return handOver(flightBuffer_, flightBook_, flightNewest_, sink, failedChannel);
+}
+
+Status FramePipeline::submit(const ipc::SimSnapshot& state, ipc::Clock::time_point now, FrameBookkeeping book,
+                             FrameSink& sink, std::size_t* failedChannel, std::span<const HostFrame* const> hosts) {
+  if (!overlap_) return step(state, now, book, sink, failedChannel, hosts);
+  if (stopped_) return stopWith(*stopped_, stoppedChannel_, failedChannel);
+  // overlapsFrames() is false with depth_from channels: no host views here.
+  if (std::any_of(hosts.begin(), hosts.end(), [](const HostFrame* h) { return h != nullptr; }))
+    return stopWith(Error{"FramePipeline::submit: host views are not overlapped (a depth_from channel)"}, 0,
+                    failedChannel);
+  // 1. This state's stages 1–3 (tables, scenes, surfaces) here, on the GL thread, beside the
+  // frame in flight's stages 4–6 on the worker.
+  std::optional<Error> beginError;
+  std::size_t beginChannel = 0;
+  for (std::size_t c = 0; c < renderers_.size() && !beginError; ++c) {
+    if (Status s = renderers_[c]->begin(state, now, awaitTables_); !s) {
+      beginError = s.error();
+      beginChannel = c;
+    }
+  }
+  // 2. The frame in flight done; its errors come first (an earlier frame).
+  const bool previous = inFlight_;
+  const std::size_t previousBuffer = flightBuffer_;
+  const FrameBookkeeping previousBook = flightBook_;
+  const ipc::Clock::time_point previousNewest = flightNewest_;
+  waitForWorker();
+  inFlight_ = false;
+  if (previous && jobError_) return stopWith(*jobError_, jobChannel_, failedChannel);
+  // 3. This frame's stages 4–6 on the worker, into the other set of buffers; it reaches the
+  // sink at the next submit or flush.
+  if (!beginError) {
+    flightBuffer_ = previous ? 1 - previousBuffer : previousBuffer;
+    flightBook_ = book;
+    flightNewest_ = newestInput(state);
+    inFlight_ = true;
+    {
+      std::lock_guard lock(mutex_);
+      jobQueued_ = true;
+      jobError_.reset();
+    }
+    wake_.notify_all();
+  }
+  // 4. Meanwhile the previous frame to the sink (an error there waits for the worker and stops).
+  if (previous) {
+    if (Status s = handOver(previousBuffer, previousBook, previousNewest, sink, failedChannel); !s) {
+      inFlight_ = false;
+      return s;
+    }
+  }
+  if (beginError) return stopWith(*beginError, beginChannel, failedChannel);
+  return Ok{};
+}
 
 Status FramePipeline::step(const ipc::SimSnapshot& state, ipc::Clock::time_point now, FrameBookkeeping book,
                            FrameSink& sink, std::size_t* failedChannel, std::span<const HostFrame* const> hosts) {
+  if (Status s = flush(sink, failedChannel); !s) return s;  // the frame in flight first (and a stopped pipeline)
   // Input-to-frame latency starts at the arrival of the newest message the state holds.
-  ipc::Clock::time_point newest{};
-  for (const ipc::Stamp* s : {&state.ego.stamp, &state.lamps.stamp, &state.environment.stamp, &state.frame_request.stamp})
-    if (s->valid) newest = std::max(newest, s->received);
+  const ipc::Clock::time_point newest = newestInput(state);
   for (std::size_t c = 0; c < renderers_.size(); ++c) {
     const HostFrame* host = c < hosts.size() ? hosts[c] : nullptr;
     if (!host && !config_.channels[c].depth_from.empty()) continue;  // no host view yet
@@ -62,11 +217,9 @@ Status FramePipeline::step(const ipc::SimSnapshot& state, ipc::Clock::time_point
       }
       s = sink.consume(c, frame_, book);
     }
-    if (!s) {
-      if (failedChannel) *failedChannel = c;
-      return s;
-    }
+    if (!s) return stopWith(s.error(), c, failedChannel);
   }
+  ++handed_;
   return Ok{};
 }
 

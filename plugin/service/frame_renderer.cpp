@@ -17,6 +17,7 @@
 #include <cmath>
 #include <future>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <utility>
 
@@ -163,12 +164,14 @@ struct ChannelRenderer::Impl {
 
   /// [render] airlight = "gpu": the GL pass computes the airlight; no CPU evaluator, no tables.
   bool gpuAirlight = false;
-  std::vector<float> gpuAir;             ///< the GL pass's airlight, 3 per pixel
   /// Glow, glare and the per-frame airlight evaluators of pending frames (below) run on it; the
   /// tables' evaluator has its own (a build makes a new one, possibly on another thread).
   std::shared_ptr<ThreadPool> framePool;
   SurfaceShader cpuSurfaces;             ///< the CPU surface pass (no GL, or a failed GL frame)
   kernels::ShadeFrame cpuShadeFrame;     ///< its per-frame lamps and planes, kept
+  /// The CPU surface pass's pool while another frame's finish() runs on framePool (a pool runs
+  /// one loop at a time): made the first time a begin() overlaps a finish().
+  std::unique_ptr<ThreadPool> surfacePool;
 
   /// [render] pending_tables = "per-pixel": while the tables for the wanted fog and bending are
   /// not in use, a frame evaluates the ego lamps (with every other lamp that is on) through the
@@ -184,7 +187,10 @@ struct ChannelRenderer::Impl {
   /// key every frame) does not spend the cores on tables that are stale before they are done.
   TableKey lastWant;
   int wantHeld = 0;
-  bool useTables = false;  ///< this frame: the tables' evaluator serves the world and ego lamps
+  /// An evaluator with tables exists or has been taken by a begun frame (which installs it in
+  /// `eval` at its finish()): what stage 1 asks of `eval` without reading it, since the previous
+  /// frame's airlight may be reading it on another thread.
+  bool tablesBuilt = false;
 
   /// Glow and glare ([glow], [glare]), evaluated on each frame's lit scene (its lamp list changes
   /// with traffic and light bits, which LampEffects follows). LampEffects::build takes the fog's
@@ -209,15 +215,47 @@ struct ChannelRenderer::Impl {
   /// to the eye holds (the ego's lamps while they do not bend), which are most of a per-pixel
   /// frame's cost; rebuilt when the phase function changes.
   std::unique_ptr<AirlightImageEvaluator> pendingEval;
-  std::vector<char> lampOn;  ///< this frame, per lamp of the frame's scene: switched on
   TableKey current;
   std::future<Result<AirlightImageEvaluator>> building;  ///< tables for `next`, off the frame thread
   TableKey next;
 
-  SurfaceBuffers surface;  ///< the surface pass's output (own views)
-  /// This frame's surfaces: `surface`, or a host's distances (depth_from; rgb zero).
-  const SurfaceBuffers* surf = &surface;
   AirlightImage air, trafficAir;
+
+  /// A frame between begin() and finish(): what stages 1–3 decided and made, for stages 4–6.
+  /// Two slots, so that frame N+1 can be begun while frame N is finished on another thread.
+  struct Begun {
+    TableKey key;             ///< the fog and bending the frame shows
+    bool useTables = false;   ///< the tables' evaluator serves the world and ego lamps
+    bool pending = false;     ///< RenderedFrame::pending
+    /// A table build this frame took (stage 1): it replaces `eval` when the frame's finish()
+    /// starts, after the previous frame's airlight has read the old tables.
+    std::unique_ptr<AirlightImageEvaluator> adopt;
+    /// `scene`: world lamps + the whole ego rig; `lit`: the lamps that are on (world, ego,
+    /// traffic); `traffic`: the traffic lamps that are on (render(), stage 2).
+    Scene scene, lit, traffic;
+    std::vector<char> lampOn;  ///< per lamp of `scene`: switched on
+    std::uint32_t lights = 0;
+    SurfaceBuffers surface;    ///< the surface pass's output (own views)
+    /// The frame's surfaces: `surface`, or a host's distances (depth_from; rgb zero).
+    const SurfaceBuffers* surf = nullptr;
+    std::vector<float> gpuAir;  ///< the GL pass's airlight, 3 per pixel ([render] airlight = "gpu")
+    const HostFrame* host = nullptr;
+    bool wait = false;
+    ipc::Clock::time_point now{};
+    double simTime = 0.0;      ///< s: the automatic exposure's clock when `wait`
+    FrameView view;
+    FrameInputs inputs;
+    std::uint64_t hostFrame = 0;
+    /// ms: stage 1's wait, the surface pass (the GL pass's wall time, its airlight draw's GPU
+    /// time in gpuAirlightMs), begin()'s whole call.
+    double tableWaitMs = 0.0, surfaceMs = 0.0, gpuAirlightMs = 0.0, beginMs = 0.0;
+  };
+  std::array<Begun, 2> slots;
+  /// The begun frames are slots[head], slots[(head + 1) % 2], `queued` of them. Guarded by
+  /// `ring`: begin() and finish() of two frames may run on two threads at once; each touches
+  /// only its own slot's contents.
+  mutable std::mutex ring;
+  std::size_t head = 0, queued = 0;
 
   /// The frame's scene: world lamps, then the ego rig (in config order), for the ego pose, the
   /// key's fog and bending.
@@ -243,16 +281,20 @@ struct ChannelRenderer::Impl {
 
   // The stages of render(), in order (defined below, each with what it does).
   [[nodiscard]] TableKey wantedTables(const ipc::SimSnapshot& state) const;
-  [[nodiscard]] Status updateTables(const VehiclePose& pose, const TableKey& want, bool wait);
-  [[nodiscard]] Status egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit);
+  [[nodiscard]] Status updateTables(const VehiclePose& pose, const TableKey& want, bool wait, Begun& b);
+  void litLamps(std::uint32_t lights, Begun& b);
+  [[nodiscard]] Status setEvaluatorLamps(const Begun& b);
   void startBuild(const VehiclePose& pose, const TableKey& want);
   void adoptHostIntrinsics(const Camera& host);
   [[nodiscard]] std::uint32_t trafficLamps(const ipc::SimSnapshot& state, ipc::Clock::time_point now, Scene& traffic,
                                            Scene& lit) const;
-  [[nodiscard]] Status renderSurfaces(const Scene& lit, double& gpuAirlightMs);
-  [[nodiscard]] Status renderAirlight(const Scene& scene, const Scene& traffic, RenderedFrame& out);
-  [[nodiscard]] Status renderEffects(const Scene& lit, const TableKey& key, RenderedFrame& out, EffectLayers& layers);
-  void compositeAndPack(const Medium& fog, const EffectLayers& layers, double adaptSeconds, RenderedFrame& out);
+  [[nodiscard]] Status renderSurfaces(Begun& b, bool overlapped);
+  [[nodiscard]] Status renderAirlight(Begun& b, RenderedFrame& out);
+  [[nodiscard]] Status renderEffects(const Begun& b, RenderedFrame& out, EffectLayers& layers);
+  void compositeAndPack(const Begun& b, const EffectLayers& layers, double adaptSeconds, RenderedFrame& out);
+  [[nodiscard]] Status beginFrame(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                                  const HostFrame* host, Begun& b, bool overlapped);
+  [[nodiscard]] Status finishFrame(Begun& b, RenderedFrame& out);
   /// The rgba8-srgb exposure of this frame (ChannelConfig::autoExposure: adapted, else fixed).
   double exposureFor(const FrameLayers& l, double adaptSeconds);
 
@@ -366,12 +408,15 @@ void ChannelRenderer::Impl::adoptHostIntrinsics(const Camera& host) {
   v.principal_px = host.principal_px;
 }
 
-Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableKey& want, bool wait) {
+Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableKey& want, bool wait, Begun& b) {
+  // A build taken here goes to b.adopt, not to `eval`: the previous frame's airlight may still be
+  // reading `eval` on another thread (finish()); finishFrame installs it.
   ++frameIndex;
+  b.adopt.reset();
+  b.useTables = false;
   if (gpuAirlight) {
     // Nothing is tabulated on the CPU: every frame renders its own fog and bending at once.
     current = want;
-    useTables = false;
     return Ok{};
   }
   if (perPixelPending) {
@@ -386,7 +431,8 @@ Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableK
       if (take) {
         auto built = building.get();
         if (!built) return built.error();
-        eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+        b.adopt = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+        tablesBuilt = true;
         current = next;
       }
     }
@@ -395,8 +441,8 @@ Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableK
     const double tol = config->bending_tolerance_deg;
     wantHeld = frameIndex > 1 && lastWant.serves(want, tol) ? wantHeld + 1 : 1;
     lastWant = want;
-    useTables = eval && current.serves(want, tol);
-    if (!useTables && !building.valid() && wantHeld >= 2) startBuild(pose, want);
+    b.useTables = tablesBuilt && current.serves(want, tol);
+    if (!b.useTables && !building.valid() && wantHeld >= 2) startBuild(pose, want);
     return Ok{};
   }
   // pending_tables = "previous". A finished background build replaces the tables in use
@@ -404,43 +450,50 @@ Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableK
   if (building.valid() && (wait || building.wait_for(std::chrono::seconds(0)) == std::future_status::ready)) {
     auto built = building.get();
     if (!built) return built.error();
-    eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+    b.adopt = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+    tablesBuilt = true;
     current = next;
   }
-  if (!eval || !current.serves(want, config->bending_tolerance_deg)) {
-    if (wait || !eval) {
+  if (!tablesBuilt || !current.serves(want, config->bending_tolerance_deg)) {
+    if (wait || !tablesBuilt) {
       // Lock-step, replay, and the very first frame: build here, the frame waits.
       auto built = buildFor(sceneFor(pose, want));
       if (!built) return built.error();
-      eval = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+      b.adopt = std::make_unique<AirlightImageEvaluator>(std::move(built).value());
+      tablesBuilt = true;
       current = want;
     } else if (!building.valid()) {
       // Free-running: one build at a time in the background; frames keep `current` meanwhile.
       startBuild(pose, want);
     }
   }
-  useTables = true;
+  b.useTables = true;
   return Ok{};
 }
 
-Status ChannelRenderer::Impl::egoAndWorldLamps(std::uint32_t lights, const Scene& scene, Scene& lit) {
-  // `scene` holds every world lamp and every ego point lamp, the evaluator's view tables being
-  // per lamp: it gets the frame's poses of all of them, and those that are off are switched off
-  // in it, not removed. `lit` gets the ones that are on (world lamps always are). A frame
-  // without tables (pending) leaves the evaluator as it is: its tables are for another key.
-  if (useTables) {
-    if (Status s = eval->setLampPoses(scene); !s) return s;
-  }
+void ChannelRenderer::Impl::litLamps(std::uint32_t lights, Begun& b) {
+  // b.scene holds every world lamp and every ego point lamp, the evaluator's view tables being
+  // per lamp: those that are on go to b.lit (world lamps always are), and b.lampOn says which
+  // they are for the evaluator (setEvaluatorLamps, at the frame's airlight).
+  const Scene& scene = b.scene;
   const std::size_t worldCount = world.lamps.size();
-  lampOn.assign(scene.lamps.size(), 0);
+  b.lampOn.assign(scene.lamps.size(), 0);
   for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
     // All points of an aperture lamp switch together: by their rig lamp's light bit.
     const std::uint32_t bit = i < worldCount ? 0u : config->ego.lamps[egoPoints[i - worldCount].rig_lamp].light_bit;
     const bool on = bit == 0 || (lights & bit) != 0;
-    if (useTables) eval->setLampEnabled(i, on);
-    lampOn[i] = on ? 1 : 0;
-    if (on) lit.lamps.push_back(scene.lamps[i]);
+    b.lampOn[i] = on ? 1 : 0;
+    if (on) b.lit.lamps.push_back(scene.lamps[i]);
   }
+}
+
+Status ChannelRenderer::Impl::setEvaluatorLamps(const Begun& b) {
+  // The tables' evaluator gets the frame's poses of all its lamps, then those that are off are
+  // switched off in it, not removed (this order: poses before enable bits). A frame without
+  // tables (pending) leaves it as it is: its tables are for another key.
+  if (!b.useTables) return Ok{};
+  if (Status s = eval->setLampPoses(b.scene); !s) return s;
+  for (std::size_t i = 0; i < b.lampOn.size(); ++i) eval->setLampEnabled(i, b.lampOn[i] != 0);
   return Ok{};
 }
 
@@ -468,32 +521,37 @@ std::uint32_t ChannelRenderer::Impl::trafficLamps(const ipc::SimSnapshot& state,
   return count;
 }
 
-Status ChannelRenderer::Impl::renderSurfaces(const Scene& lit, double& gpuAirlightMs) {
-  gpuAirlightMs = 0.0;
+Status ChannelRenderer::Impl::renderSurfaces(Begun& b, bool overlapped) {
+  b.gpuAirlightMs = 0.0;
   if (gpuAirlight) {
     // Surfaces and the airlight of every lit lamp (world, ego, traffic) in one GL pass.
-    if (Status s = gl->render(lit, surface, gpuAir); !s) return Error{"GL surface pass: " + s.error().message};
-    gpuAirlightMs = gl->stats().airlight_ms;
-  } else if (!gl || !gl->render(lit, surface)) {
+    if (Status s = gl->render(b.lit, b.surface, b.gpuAir); !s) return Error{"GL surface pass: " + s.error().message};
+    b.gpuAirlightMs = gl->stats().airlight_ms;
+  } else if (!gl || !gl->render(b.lit, b.surface)) {
     // CPU planes and body (the bonnet): no GL pass, or it failed this frame (then they stand in
     // for it). SurfaceShader's SIMD path; renderSurfacesCpu is its double-precision oracle.
-    cpuSurfaces.render(lit, cpuShadeFrame, surface, framePool.get());
+    // Beside another frame's finish() (on framePool) on a pool of its own; rows are independent,
+    // so the pool does not change a pixel.
+    if (overlapped && !surfacePool) surfacePool = std::make_unique<ThreadPool>(config->threads);
+    cpuSurfaces.render(b.lit, cpuShadeFrame, b.surface, overlapped ? surfacePool.get() : framePool.get());
   }
   return Ok{};
 }
 
-Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& traffic,
-                                             RenderedFrame& out) {
+Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
+  const Scene& scene = b.scene;
+  const Scene& traffic = b.traffic;
+  const SurfaceBuffers* surf = b.surf;
   out.traffic_evaluated = 0;
   if (gpuAirlight) {
     air.width = surf->width;
     air.height = surf->height;
-    air.rgb.swap(gpuAir);  // no copy; the GL pass refills the other buffer next frame
+    air.rgb.swap(b.gpuAir);  // no copy; the GL pass refills the slot's buffer at its next frame
     air.evaluated = static_cast<std::size_t>(surf->width) * static_cast<std::size_t>(surf->height);
     out.airlight_evaluated = air.evaluated;
     return Ok{};
   }
-  if (!useTables) {
+  if (!b.useTables) {
     // Tables pending ([render] pending_tables = "per-pixel"): the world and ego lamps that are
     // on, the ego's as lamps that move relative to the eye (the pencil, maps or per ray:
     // [render] moving_lamps), in this frame's fog and bending; traffic below, as in frames
@@ -507,7 +565,7 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
       if (!fe) return fe.error();
       pendingEval = std::make_unique<AirlightImageEvaluator>(std::move(fe).value());
     }
-    for (std::size_t i = 0; i < all.lamps.size(); ++i) pendingEval->setLampEnabled(i, lampOn[i] != 0);
+    for (std::size_t i = 0; i < all.lamps.size(); ++i) pendingEval->setLampEnabled(i, b.lampOn[i] != 0);
     pendingEval->evaluate(all, *surf, subsampling, air);
   } else {
     // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
@@ -518,7 +576,7 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
     // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
     // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
     // per-lamp tables come from the evaluators' caches, the pool is the frame's.
-    auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, useTables ? eval->pool() : framePool, fast);
+    auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, b.useTables ? eval->pool() : framePool, fast);
     if (!te) return te.error();
     te->evaluate(traffic, *surf, subsampling, trafficAir);
     out.traffic_evaluated = trafficAir.evaluated;
@@ -527,8 +585,9 @@ Status ChannelRenderer::Impl::renderAirlight(const Scene& scene, const Scene& tr
   return Ok{};
 }
 
-Status ChannelRenderer::Impl::renderEffects(const Scene& lit, const TableKey& key, RenderedFrame& out,
-                                            EffectLayers& layers) {
+Status ChannelRenderer::Impl::renderEffects(const Begun& b, RenderedFrame& out, EffectLayers& layers) {
+  const Scene& lit = b.lit;
+  const TableKey& key = b.key;
   // Glow and glare of the lamps that are on, seen from this frame's eye through its fog, with
   // the surfaces' distances (a lamp behind a surface has neither). The lit scene holds only the
   // lamps that are on; LampEffects leaves the ego's own (vehicle-mounted) lamps out itself.
@@ -545,7 +604,7 @@ Status ChannelRenderer::Impl::renderEffects(const Scene& lit, const TableKey& ke
     effectsKey = key;
     effectsPool = pool.get();
   }
-  effects->evaluate(lit, *surf, glow, glare, out.effects);
+  effects->evaluate(lit, *b.surf, glow, glare, out.effects);
   layers.glow = &glow;
   layers.glare = &glare;
   return Ok{};
@@ -559,11 +618,11 @@ double ChannelRenderer::Impl::exposureFor(const FrameLayers& l, double adaptSeco
   return exposure.update(autoExposureEv(l.composite, l.width, l.height), adaptSeconds);
 }
 
-void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLayers& layers, double adaptSeconds,
+void ChannelRenderer::Impl::compositeAndPack(const Begun& b, const EffectLayers& layers, double adaptSeconds,
                                              RenderedFrame& out) {
   // Composite (surface · T + airlight, glow and glare added), then the channel's wire format:
   // tone-mapped sRGB at the channel's exposure, linear cd/m², or the overlay (A = T).
-  compositeFrame(fog, *surf, air, out.layers, layers, framePool.get());
+  compositeFrame(b.scene.fog, *b.surf, air, out.layers, layers, framePool.get());
   const std::size_t n = static_cast<std::size_t>(channel.width) * static_cast<std::size_t>(channel.height);
   out.packed.resize(n * ipc::bytesPerPixel(format));
   if (format == FOGBEAM_FORMAT_RGBA8_SRGB) {
@@ -579,134 +638,207 @@ void ChannelRenderer::Impl::compositeAndPack(const Medium& fog, const EffectLaye
   }
 }
 
-Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
-                               RenderedFrame& out, const HostFrame* host) {
-  Impl& m = *impl_;
+Status ChannelRenderer::Impl::beginFrame(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                                          const HostFrame* host, Begun& b, bool overlapped) {
   const auto t0 = Clock::now();
   const ipc::EgoState& ego = state.ego.value;
   if (host) {
     const Camera& hc = host->view->camera;
-    if (hc.width != m.channel.width || hc.height != m.channel.height || host->surface->width != hc.width ||
+    if (hc.width != channel.width || hc.height != channel.height || host->surface->width != hc.width ||
         host->surface->height != hc.height)
       return Error{"host view " + std::to_string(hc.width) + "x" + std::to_string(hc.height) + " for a " +
-                   std::to_string(m.channel.width) + "x" + std::to_string(m.channel.height) + " channel"};
-    m.adoptHostIntrinsics(hc);
+                   std::to_string(channel.width) + "x" + std::to_string(channel.height) + " channel"};
+    adoptHostIntrinsics(hc);
   }
+  b.host = host;
+  b.wait = wait;
+  b.now = now;
   // The vehicle: the ego pose, or for a host view the pose that puts the channel's eye at the
   // host's camera (the host's view wins; docs/service.md, "Host depth").
-  const VehiclePose pose = host ? poseOf(host->view->camera, m.vehicleCamera) : poseOf(ego);
+  const VehiclePose pose = host ? poseOf(host->view->camera, vehicleCamera) : poseOf(ego);
   // Until the first lamp state the ego drives with low beams and position lamps.
-  const std::uint32_t lights =
-      state.lamps.stamp.valid ? state.lamps.value.lights : ipc::light::kInitialEgo;
+  b.lights = state.lamps.stamp.valid ? state.lamps.value.lights : ipc::light::kInitialEgo;
 
   // 1. Tables for the wanted fog and bending (built, awaited or still building).
-  const TableKey want = m.wantedTables(state);
+  const TableKey want = wantedTables(state);
   const auto tw = Clock::now();
-  if (Status s = m.updateTables(pose, want, wait); !s) return s;
-  out.timings.table_wait_ms = ms(tw, Clock::now());
-  const bool served = m.current.serves(want, m.config->bending_tolerance_deg);
-  out.pending = m.gpuAirlight ? false : m.perPixelPending ? !m.useTables : !served;
+  if (Status s = updateTables(pose, want, wait, b); !s) return s;
+  b.tableWaitMs = ms(tw, Clock::now());
+  const bool served = current.serves(want, config->bending_tolerance_deg);
+  b.pending = gpuAirlight ? false : perPixelPending ? !b.useTables : !served;
   // The fog and bending this frame shows: the wanted ones, unless pending_tables = "previous"
   // keeps the tables' until their build is done.
   // (Tables serve it when its bending angle is within bending_tolerance_deg of theirs: then the
   // frame shows theirs, the evaluator's lamps keeping the poses its tables were built for.)
-  const TableKey& key = m.gpuAirlight || (m.perPixelPending && !m.useTables) ? want : m.current;
+  b.key = gpuAirlight || (perPixelPending && !b.useTables) ? want : current;
 
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
   // bending; `lit` = the lamps that are on (world, ego by light bits, traffic), for the surface
-  // pass, the GPU airlight, glow and glare; `traffic` = the traffic lamps that are on.
-  Scene scene = m.sceneFor(pose, key);
-  if (host) scene.camera = host->view->camera;  // exactly the host's (sceneFor's differs by rounding)
-  Scene lit = scene;
-  lit.lamps.clear();
-  Scene traffic = scene;
-  traffic.lamps.clear();
-  if (Status s = m.egoAndWorldLamps(lights, scene, lit); !s) return s;
-  const std::uint32_t trafficCount = m.trafficLamps(state, now, traffic, lit);
+  // pass, the GPU airlight, glow and glare; `traffic` = the traffic lamps that are on. (The
+  // tables' evaluator gets the poses and switches at the airlight: setEvaluatorLamps.)
+  b.scene = sceneFor(pose, b.key);
+  if (host) b.scene.camera = host->view->camera;  // exactly the host's (sceneFor's differs by rounding)
+  b.lit = b.scene;
+  b.lit.lamps.clear();
+  b.traffic = b.scene;
+  b.traffic.lamps.clear();
+  litLamps(b.lights, b);
+  const std::uint32_t trafficCount = trafficLamps(state, now, b.traffic, b.lit);
 
   // 3. Surfaces.
   const auto tS = Clock::now();
-  double gpuAirlightMs = 0.0;
-  m.surf = host ? host->surface : &m.surface;  // a host view: its distances, no surface pass
+  b.gpuAirlightMs = 0.0;
+  b.surf = host ? host->surface : &b.surface;  // a host view: its distances, no surface pass
   if (!host) {
-    if (Status s = m.renderSurfaces(lit, gpuAirlightMs); !s) return s;
-  } else if (host->view->colour && m.format != FOGBEAM_FORMAT_RGBA16F_OVERLAY) {
+    if (Status s = renderSurfaces(b, overlapped); !s) return s;
+  } else if (host->view->colour && format != FOGBEAM_FORMAT_RGBA16F_OVERLAY) {
     // A composite of the host's own image: its surfaces seen through this frame's fog, as the
     // surface pass gives fogbeam's own (L·T + ambient·(1 − T), T = exp(−K_t d), 0 for sky), so
     // that composite = host·T + overlay.
     const SurfaceBuffers& hs = *host->surface;
-    m.surface.resize(hs.width, hs.height);
-    const double kt = scene.fog.extinction_per_m;
-    const auto ia = static_cast<float>(scene.fog.ambient_cd_m2);
+    b.surface.resize(hs.width, hs.height);
+    const double kt = b.scene.fog.extinction_per_m;
+    const auto ia = static_cast<float>(b.scene.fog.ambient_cd_m2);
     for (std::size_t k = 0; k < hs.distance.size(); ++k) {
       const float d = hs.distance[k];
       const float t = std::isinf(d) ? 0.0f : static_cast<float>(std::exp(-kt * static_cast<double>(d)));
-      m.surface.distance[k] = d;
-      for (std::size_t c = 0; c < 3; ++c) m.surface.rgb[3 * k + c] = hs.rgb[3 * k + c] * t + ia * (1.0f - t);
+      b.surface.distance[k] = d;
+      for (std::size_t c = 0; c < 3; ++c) b.surface.rgb[3 * k + c] = hs.rgb[3 * k + c] * t + ia * (1.0f - t);
     }
-    m.surf = &m.surface;
+    b.surf = &b.surface;
   }
+  const auto tE = Clock::now();
+  b.surfaceMs = ms(tS, tE);
 
-  // 4. Airlight.
+  // What the renderer knows of the frame (the state is not kept: finish() may run after the
+  // caller's next snapshot).
+  b.view.eye_m = b.scene.camera.position_m;
+  const FrustumAngles f = vehicleCamera.frustum();
+  b.view.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
+  b.view.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
+  b.hostFrame = host ? host->view->frame : 0;
+  if (host) {
+    // The host's view echoed as it was published, so that the host pairs the overlay with its frame.
+    const HostView& hv = *host->view;
+    b.view.yaw_deg = hv.yaw_deg;
+    b.view.pitch_deg = hv.pitch_deg;
+    b.view.roll_deg = hv.roll_deg;
+    b.view.frustum_deg = hv.frustum_deg;
+    b.inputs.sim_time_s = hv.sim_time_s;
+  } else {
+    b.view.yaw_deg = ego.pose.yaw_deg;
+    b.view.pitch_deg = ego.pose.pitch_deg;
+    b.view.roll_deg = ego.pose.roll_deg;
+    b.view.frustum_deg = {0.0f, 0.0f, 0.0f, 0.0f};
+    if (channel.frustum_deg)
+      for (std::size_t k = 0; k < 4; ++k) b.view.frustum_deg[k] = static_cast<float>((*channel.frustum_deg)[k]);
+    b.inputs.sim_time_s = state.ego.stamp.sim_time_s;
+  }
+  // The automatic exposure's simulation clock (finishFrame).
+  b.simTime = host ? host->view->sim_time_s : state.ego.stamp.sim_time_s;
+  b.inputs.lights = b.lights;
+  b.inputs.ego_sequence = state.ego.stamp.sequence;
+  b.inputs.lamp_sequence = state.lamps.stamp.sequence;
+  b.inputs.environment_sequence = state.environment.stamp.sequence;
+  b.inputs.traffic_count = trafficCount;
+  b.beginMs = ms(t0, Clock::now());
+  return Ok{};
+}
+
+Status ChannelRenderer::Impl::finishFrame(Begun& b, RenderedFrame& out) {
+  const auto t0 = Clock::now();
+  // A build the frame took in stage 1 replaces the tables now: the frame before it is done.
+  if (b.adopt) eval = std::move(b.adopt);
+  out.timings.table_wait_ms = b.tableWaitMs;
+  out.pending = b.pending;
+
+  // 4. Airlight (the tables' evaluator given the frame's lamp poses and switches first).
   const auto tA = Clock::now();
-  if (Status s = m.renderAirlight(scene, traffic, out); !s) return s;
+  if (Status s = setEvaluatorLamps(b); !s) return s;
+  if (Status s = renderAirlight(b, out); !s) return s;
 
   // 5. Glow and glare.
   const auto tF = Clock::now();
   EffectLayers layers;
-  if (Status s = m.renderEffects(lit, key, out, layers); !s) return s;
+  if (Status s = renderEffects(b, out, layers); !s) return s;
 
   // 6. Composite and pack.
   const auto tC = Clock::now();
   // The automatic exposure adapts over the time between frames: the states' simulation time when
   // frames wait for their inputs (lock-step, replay: the same states give the same frames), the
   // wall clock when free-running (what the cab's driver sees).
-  const double simTime = host ? host->view->sim_time_s : state.ego.stamp.sim_time_s;
   double adaptSeconds = 0.0;
-  if (m.exposureClockSet)
-    adaptSeconds = wait ? simTime - m.exposureSimTime : std::chrono::duration<double>(now - m.exposureWallTime).count();
-  m.exposureSimTime = simTime;
-  m.exposureWallTime = now;
-  m.exposureClockSet = true;
-  m.compositeAndPack(scene.fog, layers, adaptSeconds, out);
+  if (exposureClockSet)
+    adaptSeconds = b.wait ? b.simTime - exposureSimTime : std::chrono::duration<double>(b.now - exposureWallTime).count();
+  exposureSimTime = b.simTime;
+  exposureWallTime = b.now;
+  exposureClockSet = true;
+  compositeAndPack(b, layers, adaptSeconds, out);
   const auto tE = Clock::now();
 
   // What the renderer knows of the frame; the service adds its bookkeeping (wireMeta).
-  out.view.eye_m = scene.camera.position_m;
-  const FrustumAngles f = m.vehicleCamera.frustum();
-  out.view.fov_x_deg = static_cast<float>((f.left + f.right) * 180.0 / kPi);
-  out.view.fov_y_deg = static_cast<float>((f.up + f.down) * 180.0 / kPi);
-  out.host_frame = host ? host->view->frame : 0;
-  if (host) {
-    // The host's view echoed as it was published, so that the host pairs the overlay with its frame.
-    const HostView& hv = *host->view;
-    out.view.yaw_deg = hv.yaw_deg;
-    out.view.pitch_deg = hv.pitch_deg;
-    out.view.roll_deg = hv.roll_deg;
-    out.view.frustum_deg = hv.frustum_deg;
-    out.inputs.sim_time_s = hv.sim_time_s;
-  } else {
-    out.view.yaw_deg = ego.pose.yaw_deg;
-    out.view.pitch_deg = ego.pose.pitch_deg;
-    out.view.roll_deg = ego.pose.roll_deg;
-    out.view.frustum_deg = {0.0f, 0.0f, 0.0f, 0.0f};
-    if (m.channel.frustum_deg)
-      for (std::size_t k = 0; k < 4; ++k) out.view.frustum_deg[k] = static_cast<float>((*m.channel.frustum_deg)[k]);
-    out.inputs.sim_time_s = state.ego.stamp.sim_time_s;
-  }
-  out.inputs.lights = lights;
-  out.inputs.ego_sequence = state.ego.stamp.sequence;
-  out.inputs.lamp_sequence = state.lamps.stamp.sequence;
-  out.inputs.environment_sequence = state.environment.stamp.sequence;
-  out.inputs.traffic_count = trafficCount;
+  out.view = b.view;
+  out.inputs = b.inputs;
+  out.host_frame = b.hostFrame;
   // With the GPU airlight, surfaces and airlight are one GL pass: its airlight draw's GPU time
   // (timer query) is the airlight, the rest of the pass's wall time the surface.
-  out.timings.surface_ms = std::max(0.0, ms(tS, tA) - gpuAirlightMs);
-  out.timings.airlight_ms = ms(tA, tF) + gpuAirlightMs;
-  out.timings.effects_ms = m.config->effects.glow.enabled || m.config->effects.glare.enabled ? ms(tF, tC) : 0.0;
+  out.timings.surface_ms = std::max(0.0, b.surfaceMs - b.gpuAirlightMs);
+  out.timings.airlight_ms = ms(tA, tF) + b.gpuAirlightMs;
+  out.timings.effects_ms = config->effects.glow.enabled || config->effects.glare.enabled ? ms(tF, tC) : 0.0;
   out.timings.composite_ms = ms(tC, tE);
-  out.timings.total_ms = ms(t0, tE);
+  out.timings.total_ms = b.beginMs + ms(t0, tE);
+  // The frame's scenes are rebuilt by its slot's next begin(); the host's buffers are the host's.
+  b.host = nullptr;
   return Ok{};
+}
+
+Status ChannelRenderer::begin(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                              const HostFrame* host) {
+  Impl& m = *impl_;
+  std::size_t slot = 0;
+  bool overlapped = false;
+  {
+    std::lock_guard lock(m.ring);
+    if (m.queued >= m.slots.size())
+      return Error{"ChannelRenderer::begin: two frames begun and not finished (finish() one first)"};
+    if (host && m.queued != 0)
+      return Error{"ChannelRenderer::begin: a host view's frame cannot be begun beside another (finish it first)"};
+    if (m.queued == 0) m.head = 0;  // frames in sequence always use slot 0 (one set of buffers)
+    slot = (m.head + m.queued) % m.slots.size();
+    overlapped = m.queued != 0;  // the frame in flight may be in finish() on another thread
+  }
+  // Only this thread touches slots[slot] until it is queued below.
+  if (Status s = m.beginFrame(state, now, wait, host, m.slots[slot], overlapped); !s) return s;
+  std::lock_guard lock(m.ring);
+  ++m.queued;
+  return Ok{};
+}
+
+Status ChannelRenderer::finish(RenderedFrame& out) {
+  Impl& m = *impl_;
+  std::size_t slot = 0;
+  {
+    std::lock_guard lock(m.ring);
+    if (m.queued == 0) return Error{"ChannelRenderer::finish: no frame begun"};
+    slot = m.head;
+  }
+  const Status s = m.finishFrame(m.slots[slot], out);
+  std::lock_guard lock(m.ring);
+  m.head = (m.head + 1) % m.slots.size();
+  --m.queued;
+  return s;
+}
+
+std::size_t ChannelRenderer::inFlight() const {
+  std::lock_guard lock(impl_->ring);
+  return impl_->queued;
+}
+
+Status ChannelRenderer::render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                               RenderedFrame& out, const HostFrame* host) {
+  if (inFlight() != 0) return Error{"ChannelRenderer::render: a frame begun with begin() is not finished"};
+  if (Status s = begin(state, now, wait, host); !s) return s;
+  return finish(out);
 }
 
 }  // namespace fogbeam::plugin

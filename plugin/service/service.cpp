@@ -325,7 +325,8 @@ struct Service::Impl {
   std::atomic<bool> stopRequested{false};
   std::mutex running;  ///< held by run() for its whole duration; stop() takes it to wait for it
   bool stopped = false;  ///< under `running`
-  std::atomic<std::uint64_t> frames{0};
+  std::atomic<std::uint64_t> frames{0};  ///< = pipeline->handed(), for readers on other threads
+  std::uint64_t submitted = 0;  ///< frames given to the pipeline (free-running frame numbers)
   std::uint64_t lastRequestSeq = 0;  ///< lock-step: the sequence number of the last request served
 
   mutable std::mutex life;  ///< guards `udp` against its teardown in stop() for udpStats()/statusJson()
@@ -535,6 +536,40 @@ Status Service::run(const RunLimits& limits) {
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / cfg.rate_hz));
   std::optional<Error> failure;
   const bool hostPaced = m.hostPaced;
+  // After each call that may hand frames to the sink (the pipeline's step, submit or flush):
+  // its failure, the published count, the candump replay's start with the first frame.
+  auto settle = [&](const Status& s, std::size_t failed) {
+    if (!s) {
+      spdlog::error("serve: channel {}: {}", cfg.channels[failed].name, s.error().message);
+      failure = Error{"channel " + cfg.channels[failed].name + ": " + s.error().message};
+      m.stopRequested = true;  // a renderer that failed is not trusted with another frame
+    }
+    const std::uint64_t handed = m.pipeline->handed();
+    windowFrames += handed - m.frames.load();
+    m.frames.store(handed);  // published on every channel
+    if (handed > 0 && m.candumpDecoder && !failure) {
+      // The first frame is out: the candump replay starts now (create()).
+      auto src = ipc::startCandumpReplay(cfg.can_candump, cfg.can_candump_speed, std::move(*m.candumpDecoder), *m.store);
+      m.candumpDecoder.reset();
+      if (!src) {
+        failure = Error{"CAN: " + src.error().message};  // the log changed since create()
+        return;
+      }
+      std::lock_guard life(m.life);
+      m.can = std::move(src).value();
+      m.canIn = m.can.get();
+      spdlog::info("serve: candump replay of {} started with the first frame", cfg.can_candump);
+    }
+  };
+  // Overlapped frames (FramePipeline::submit): the frame in flight goes out when no next frame
+  // is to be begun now.
+  auto flushInFlight = [&] {
+    if (!m.pipeline->inFlight()) return;
+    m.sink->pending = false;
+    std::size_t failed = 0;
+    const Status s = m.pipeline->flush(*m.sink, &failed);
+    settle(s, failed);
+  };
   while (!m.stopRequested.load() && !failure) {
     if (limits.duration_s > 0.0 && Clock::now() - start > std::chrono::duration<double>(limits.duration_s)) break;
     if (limits.frames > 0 && framesThisRun >= limits.frames) break;
@@ -555,7 +590,14 @@ Status Service::run(const RunLimits& limits) {
       snap = m.store->snapshot();
     } else if (cfg.lock_step) {
       // A frame per new request; polled every 200 µs (0.2 ms of a request's latency at most).
+      // Overlapped, a frame is begun beside the previous one's rest only when its request is
+      // already here; otherwise the previous one is published now (its host may be waiting
+      // for it before it sends the next request).
       if (!snap->frame_request.stamp.valid || snap->frame_request.stamp.sequence == m.lastRequestSeq) {
+        if (m.pipeline->inFlight()) {
+          flushInFlight();
+          continue;
+        }
         std::this_thread::sleep_for(std::chrono::microseconds(200));
         continue;
       }
@@ -572,6 +614,10 @@ Status Service::run(const RunLimits& limits) {
         continue;
       }
     } else {
+      // Overlapped frames: a loop ahead of its rate publishes the frame in flight now rather
+      // than with the next frame's surfaces a period later; one behind goes straight on.
+      if (Clock::now() < nextFrame) flushInFlight();
+      if (failure) break;
       // Until the frame is due, in slices of at most kStopCheck, so that a stop request at a
       // low rate is not kept waiting for a whole period; the last slice ends on time.
       for (auto t = Clock::now(); t < nextFrame && !m.stopRequested.load(); t = Clock::now())
@@ -581,7 +627,7 @@ Status Service::run(const RunLimits& limits) {
       if (Clock::now() > nextFrame + period) nextFrame = Clock::now();  // fell behind: do not burst
       snap = m.store->snapshot();
     }
-    const std::uint64_t frame = m.frames.load() + 1;
+    const std::uint64_t frame = ++m.submitted;
     ++framesThisRun;
     const auto now = Clock::now();
     m.watch->check(*snap, now, m.playing());
@@ -598,39 +644,25 @@ Status Service::run(const RunLimits& limits) {
       if (cfg.lock_step && requested == 0) requested = link->view().frame;
     }
 
-    // The step: every channel rendered from this snapshot, mapped to the wire and published.
+    // The step: every channel rendered from this snapshot, mapped to the wire and published;
+    // overlapped, this snapshot's surfaces beside the previous frame's rest, which is published.
     FrameBookkeeping book;
     book.frame = cfg.lock_step ? requested : frame;
     book.frame_request = requested;
     m.sink->pending = false;
     std::size_t failed = 0;
-    if (Status s = m.pipeline->step(*snap, now, book, *m.sink, &failed, m.hostPtrs); !s) {
-      spdlog::error("serve: channel {}: {}", cfg.channels[failed].name, s.error().message);
-      failure = Error{"channel " + cfg.channels[failed].name + ": " + s.error().message};
-      m.stopRequested = true;  // a renderer that failed is not trusted with another frame
-    } else {
-      m.frames.store(frame);  // published on every channel
-      if (m.candumpDecoder) {
-        // The first frame is out: the candump replay starts now (create()).
-        auto src = ipc::startCandumpReplay(cfg.can_candump, cfg.can_candump_speed, std::move(*m.candumpDecoder), *m.store);
-        m.candumpDecoder.reset();
-        if (!src) {
-          failure = Error{"CAN: " + src.error().message};  // the log changed since create()
-          break;
-        }
-        std::lock_guard life(m.life);
-        m.can = std::move(src).value();
-        m.canIn = m.can.get();
-        spdlog::info("serve: candump replay of {} started with the first frame", cfg.can_candump);
-      }
-    }
-    ++windowFrames;
+    const Status s = m.pipeline->submit(*snap, now, book, *m.sink, &failed, m.hostPtrs);
+    settle(s, failed);
+    if (failure) break;
     if (Clock::now() >= nextStatus) {
       windowStart = m.updateStatus(*snap, windowFrames, windowStart);
       windowFrames = 0;
       nextStatus += interval;
     }
   }
+  // The frame in flight (overlapped) is published before the loop returns: a stop or a limit
+  // ends the loop after the frame in progress, as in sequence.
+  if (!failure) flushInFlight();
   if (failure) return *failure;
   return Ok{};
 }

@@ -57,6 +57,7 @@ constexpr std::array kRenderKeys{
     KeySpec{"table_cache"},
     KeySpec{"pending_tables"},
     KeySpec{"table_adopt_frames"},
+    KeySpec{"overlap_frames"},
 };
 constexpr std::array kTimingKeys{
     KeySpec{"mode"},
@@ -253,6 +254,8 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     const std::array<std::string_view, 2> pending{"per-pixel", "previous"};
     c.pending_tables = s.choice("pending_tables", pending, c.pending_tables);
     c.table_adopt_frames = static_cast<int>(s.integer("table_adopt_frames", 1, 100000, c.table_adopt_frames));
+    const std::array<std::string_view, 3> overlap{"auto", "on", "off"};
+    c.overlap_frames = s.choice("overlap_frames", overlap, c.overlap_frames);
   }
   // [glow] and [glare]: the scene's tables, parsed by the scene's code. As in a scene file the
   // table's presence turns its effect on unless it says `enabled = false`; its other keys keep
@@ -552,7 +555,8 @@ std::string toToml(const ServiceConfig& c) {
     << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nmoving_lamps = " << quoted(c.moving_lamps)
     << "\nsurface = " << quoted(c.surface)
     << "\nthreads = " << c.threads << "\ntable_cache = " << quoted(c.table_cache)
-    << "\npending_tables = " << quoted(c.pending_tables) << "\ntable_adopt_frames = " << c.table_adopt_frames << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
+    << "\npending_tables = " << quoted(c.pending_tables) << "\ntable_adopt_frames = " << c.table_adopt_frames
+    << "\noverlap_frames = " << quoted(c.overlap_frames) << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
     << "\ngpu_pieces = " << c.effects.render.gpu_pieces << "\n";
   o << "\n[glow]\nenabled = " << flag(c.effects.glow.enabled) << "\nfade_in = " << num(c.effects.glow.fade_in) << "\n";
   o << "\n[glare]\nenabled = " << flag(c.effects.glare.enabled) << "\nage_years = " << num(c.effects.glare.age_years)

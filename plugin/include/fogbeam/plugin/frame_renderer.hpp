@@ -30,7 +30,16 @@
 // so that a run is deterministic. With "previous", free-running frames keep the previous fog and
 // bending until the build is done, and `wait` = true (and the first frame) waits for it.
 //
-// Thread-safety: one thread drives a ChannelRenderer; distinct renderers are independent.
+// render() is begin() (stages 1–3) then finish() (stages 4–6). Called apart, they let the surface
+// pass of frame N+1 run on the GL thread while stages 4–6 of frame N run on another (frame
+// overlap, FramePipeline; docs/service.md, "Overlapped frames"): each begun frame keeps its own
+// scenes, surface buffers and decisions (one of two slots), and a table build taken by frame N+1
+// replaces the evaluator only when N+1's stage 4 starts, after N's airlight has read the old one.
+// The same calls in the same order on the same data: frames are byte for byte those of render().
+//
+// Thread-safety: one thread drives a ChannelRenderer (begin(), render() on the thread that owns
+// the GL surface pass); finish() may run on a second thread, beside the begin() of the next
+// frame, never beside another finish() or render(). Distinct renderers are independent.
 #pragma once
 
 #include <fogbeam/ipc/state_store.hpp>
@@ -159,8 +168,27 @@ class ChannelRenderer {
   /// traffic come from the state. A host view of another size than the channel is an error
   /// (the service checks it first); one with other intrinsics (field of view, frustum) is
   /// followed, the view tables being rebuilt once.
+  /// No frame may be begun and unfinished (begin() without finish()): an error otherwise.
   [[nodiscard]] Status render(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait, RenderedFrame& out,
                               const HostFrame* host = nullptr);
+
+  /// The first half of render(), stages 1–3: the tables (a build started, taken or awaited, as
+  /// render() does), the frame's scenes and the surface pass, kept for finish(). Arguments as
+  /// render()'s; `state` is read during the call only, `host` (with its buffers) must stay valid
+  /// until the frame's finish() returns. Calls GL: on the thread that owns the surface pass.
+  /// At most two frames begun and not finished (errors: a third; a host view while a frame is
+  /// in flight, since a host view changes the channel's camera). A begin() beside a finish()
+  /// uses its own thread pool for CPU surfaces (a pool runs one loop at a time).
+  [[nodiscard]] Status begin(const ipc::SimSnapshot& state, ipc::Clock::time_point now, bool wait,
+                             const HostFrame* host = nullptr);
+  /// The second half, stages 4–6 of the oldest begun frame (airlight, glow and glare, composite
+  /// and pack) into `out`, and what the renderer knows about it (RenderedFrame). No GL call: may
+  /// run on another thread than begin(), beside the next frame's begin(). Error: no frame begun.
+  /// The frame is done with, failed or not. Its timings.total_ms is the time of its own stages
+  /// (begin's and finish's calls), not the time it waited between them.
+  [[nodiscard]] Status finish(RenderedFrame& out);
+  /// Frames begun and not finished yet: 0, 1 or 2.
+  [[nodiscard]] std::size_t inFlight() const;
 
   [[nodiscard]] const ChannelConfig& channel() const;
   [[nodiscard]] std::uint32_t shmFormat() const;

@@ -21,6 +21,9 @@
 // steady clock (a frame late by more than a period restarts the pace from now instead of
 // bursting to catch up); or lock-step, one frame per new frame request (a request counts as new
 // when its sequence number differs from the last), tables awaited so runs are deterministic.
+// With overlapped frames (FramePipeline::submit, [render] overlap_frames) a frame is published
+// with the next one's surface pass when the loop is behind its rate or the next request is
+// already there, and at once otherwise; at the loop's end the frame in flight is published.
 //
 // Thread-safety: create(), run() and stop() from one owner (run() may be on a thread of its
 // own; stop() then waits for it). requestStop() from anywhere, signal handlers included. The

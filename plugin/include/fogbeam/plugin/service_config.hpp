@@ -101,6 +101,11 @@ struct ServiceConfig {
   /// frame N + table_adopt_frames on (waited for there if it is not done), so that the frames a
   /// run makes do not depend on how fast the machine builds.
   int table_adopt_frames = 60;
+  /// Frame overlap (docs/service.md, "Overlapped frames"): the surface pass of the next frame
+  /// beside the airlight, glow, glare and composite of the previous one, on a second thread.
+  /// "auto" (on where cores allow: overlapsFrames in frame_pipeline.hpp), "on" or "off". Frames
+  /// are byte for byte the same either way.
+  std::string overlap_frames = "auto";
 
   /// [render] airlight, gpu_pieces; [glow]; [glare]: the scene's tables (docs/scene.md), all
   /// off and the CPU airlight by default.
