@@ -47,10 +47,10 @@ Result<PencilAirlight> PencilAirlight::build(const AirlightEvaluator& lamp, cons
     p.kernel_ = detail::kernelTableFor(lamp.medium().phase);
   }
   p.state_ = std::make_unique<std::atomic<int>[]>(static_cast<std::size_t>(p.spokeCount_));
-  const double half = 0.5 * radians(options.piece_deg);
-  for (int k = 0; k * half <= kPi + 1e-9; ++k) {
-    p.gridCos_.push_back(std::cos(k * half));
-    p.gridSin_.push_back(std::sin(k * half));
+  const double eighth = 0.125 * radians(options.piece_deg);
+  for (int k = 0; k * eighth <= kPi + 1e-9; ++k) {
+    p.gridCos_.push_back(std::cos(k * eighth));
+    p.gridSin_.push_back(std::sin(k * eighth));
   }
   p.reset(eye);
   return p;
@@ -215,9 +215,9 @@ void PencilAirlight::sampleSpoke(int s) const {
   // towards the side the spoke's rays leave on (azimuth φ), ψ = π points away from the eye.
   const Vec3 u = ev.lampFromWorld_ * (-e0_);
   const Vec3 v = ev.lampFromWorld_ * (std::cos(phi) * e1_ + std::sin(phi) * e2_);
-  const double invHalf = 2.0 / radians(options_.piece_deg);
+  const double invEighth = 8.0 / radians(options_.piece_deg);
   auto intensity = [&](double psi) {
-    const double g = psi * invHalf, k = std::round(g);
+    const double g = psi * invEighth, k = std::round(g);
     if (std::abs(g - k) < 1e-9 && k >= 0.0 && k < static_cast<double>(gridCos_.size())) {
       const std::size_t i = static_cast<std::size_t>(k);
       return profile.intensity(gridCos_[i] * u + gridSin_[i] * v);

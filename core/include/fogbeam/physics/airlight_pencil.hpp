@@ -164,8 +164,9 @@ class PencilAirlight {
   /// read two rows of it per ray instead of four of the whole table. Empty beyond kTauMax.
   std::vector<float> sliceRows_;
   std::vector<int> sliceCuts_;
-  /// cos and sin of the multiples of piece_deg / 2, where most samples of a spoke fall (ends
-  /// and middles of the grid pieces): sampling saves a sincos per sample.
+  /// cos and sin of the multiples of piece_deg / 8, where most samples of a spoke fall (the
+  /// coarse cells' cuts, middles and quarter points down to piece_deg, the grid pieces' ends
+  /// and middles): sampling saves a sincos per sample.
   std::vector<double> gridCos_, gridSin_;
   std::unique_ptr<std::atomic<int>[]> state_;
   /// Per spoke k: the planned leaf [leafA_[k], leafA_[k] + leafW_[k]] holding azimuths in
