@@ -1656,6 +1656,38 @@ void evaluateFullTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
   pool.parallelForIndexed(tileCount(f), [jp](std::size_t t, unsigned w) { fullTile(*jp->f, jp->st->scratch[w], t); });
 }
 
+// The lattice passes' batches: coarse node (i, j) (pixel), `slot` its index from the chunk's
+// first node b0, queued in sc after its moving lamps' known values (sc.ml, NaN: evaluate).
+void queueCoarseNode(const FrameCtx& f, Scratch& sc, int i, int j, std::size_t slot) {
+  sc.x[sc.n] = static_cast<float>(i) + 0.5f;
+  sc.y[sc.n] = static_cast<float>(j) + 0.5f;
+  sc.d[sc.n] = f.surf->distance[f.idx(i, j)];
+  sc.slot[sc.n] = static_cast<std::uint32_t>(slot);
+  ++sc.n;
+}
+
+// The queued nodes' moving lamps (the rest of each node is in the grid already; known values are
+// read, not evaluated; no sky grouping: the pencil goes pixel by pixel), added to the coarse grid
+// and its moving-lamp values; the queue emptied.
+void addMovingToCoarseNodes(const FrameCtx& f, State& s, Scratch& sc, std::size_t b0) {
+  if (sc.n == 0) return;
+  const std::size_t m = f.nq;
+  sc.mlActive = true;
+  sc.movingOnly = true;
+  evaluateBatch(f, sc);
+  sc.movingOnly = false;
+  sc.mlActive = false;
+  for (std::size_t k = 0; k < sc.n; ++k) {
+    const std::size_t node = b0 + sc.slot[k];
+    float* p = s.coarse.data() + 3 * node;
+    p[0] += sc.r[k];
+    p[1] += sc.g[k];
+    p[2] += sc.b[k];
+    std::copy_n(sc.ml.data() + k * m, m, s.coarseMl.data() + node * m);
+  }
+  sc.n = 0;
+}
+
 // The lattice's second level (SubsamplingOptions::moving_lattice_levels = 2), before
 // movingLattice. The first pass evaluated the moving lamps, inside whole cells of 4 × 4 coarse
 // blocks, at the cells' corners and centres only. A cell passes for a lamp on the test of
@@ -1748,27 +1780,9 @@ void hyperLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
           known[q] = (1 - u) * ml(ci - 2, cj)[q] + u * ml(ci + 2, cj)[q];
         }
       }
-      sc.x[sc.n] = static_cast<float>(i) + 0.5f;
-      sc.y[sc.n] = static_cast<float>(j) + 0.5f;
-      sc.d[sc.n] = fc.surf->distance[fc.idx(i, j)];
-      sc.slot[sc.n] = static_cast<std::uint32_t>(k - b0);
-      ++sc.n;
+      queueCoarseNode(fc, sc, i, j, k - b0);
     }
-    if (sc.n == 0) return;
-    sc.mlActive = true;
-    sc.movingOnly = true;
-    evaluateBatch(fc, sc);
-    sc.movingOnly = false;
-    sc.mlActive = false;
-    for (std::size_t k = 0; k < sc.n; ++k) {
-      const std::size_t node = b0 + sc.slot[k];
-      float* p = s.coarse.data() + 3 * node;
-      p[0] += sc.r[k];
-      p[1] += sc.g[k];
-      p[2] += sc.b[k];
-      std::copy_n(sc.ml.data() + k * m, m, s.coarseMl.data() + node * m);
-    }
-    sc.n = 0;
+    addMovingToCoarseNodes(fc, s, sc, b0);
   });
 }
 
@@ -1868,29 +1882,9 @@ void movingLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
           known[q] = (1 - v) * ml(ci, cj - 1)[q] + v * ml(ci, cj + 1)[q];
         }
       }
-      sc.x[sc.n] = static_cast<float>(i) + 0.5f;
-      sc.y[sc.n] = static_cast<float>(j) + 0.5f;
-      sc.d[sc.n] = fc.surf->distance[fc.idx(i, j)];
-      sc.slot[sc.n] = static_cast<std::uint32_t>(k - b0);
-      ++sc.n;
+      queueCoarseNode(fc, sc, i, j, k - b0);
     }
-    if (sc.n == 0) return;
-    // Moving lamps only (the rest of each node is in the grid already); known values are read,
-    // not evaluated. No sky grouping: the pencil goes pixel by pixel.
-    sc.mlActive = true;
-    sc.movingOnly = true;
-    evaluateBatch(fc, sc);
-    sc.movingOnly = false;
-    sc.mlActive = false;
-    for (std::size_t k = 0; k < sc.n; ++k) {
-      const std::size_t node = b0 + sc.slot[k];
-      float* p = s.coarse.data() + 3 * node;
-      p[0] += sc.r[k];
-      p[1] += sc.g[k];
-      p[2] += sc.b[k];
-      std::copy_n(sc.ml.data() + k * m, m, s.coarseMl.data() + node * m);
-    }
-    sc.n = 0;
+    addMovingToCoarseNodes(fc, s, sc, b0);
   });
 }
 
