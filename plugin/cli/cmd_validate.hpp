@@ -18,6 +18,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace fogbeam::cli {
@@ -59,7 +60,8 @@ int runValidate(const ValidateOptions& o);
 //
 // The scene: the eye at the origin looking along +x (square image, `pixels` wide, 35° field of
 // view: the 16° ring fits, the image centre is the lamp's image), an isotropic lamp of
-// `intensity_cd` on the axis at R = T / K_t, infinite fog (albedo 1), nothing but the night sky.
+// `intensity_cd` (or a measured lamp, turned as the case says) on the axis at R = T / K_t,
+// infinite fog (albedo as the case says, 1 by default), nothing but the night sky.
 // Per ring of angles from the lamp's direction (pixel centres; the rings' pixels are the
 // quadrature points of every column), the mean luminance of
 //   * fogbeam single: the airlight layer's accurate method per ray (AirlightImageEvaluator);
@@ -71,11 +73,20 @@ int runValidate(const ValidateOptions& o);
 // "frame": every pixel at least the first ring's inner angle from the lamp.
 
 struct RingComparisonCase {
+  RingComparisonCase() = default;
+  RingComparisonCase(std::string n, Phase p, double opticalDistance)
+      : name(std::move(n)), phase(std::move(p)), optical_distance(opticalDistance) {}
   std::string name;
   Phase phase = HenyeyGreensteinPhase{0.85};
   double optical_distance = 1.8;  ///< T = K_t R
   double extinction_per_m = 0.06;
+  double albedo = 1.0;
   double intensity_cd = 1000.0;
+  /// A measured lamp instead of the isotropic one (null: isotropic of intensity_cd), its
+  /// photometric axis along `lamp_axis` (world; the eye looks along +x at the lamp, so (−1, 0, 0)
+  /// is head-on, (1, 0, 0) from behind, (0, 1, 0) from the side).
+  std::shared_ptr<const Profile> profile;
+  Vec3 lamp_axis{-1.0, 0.0, 0.0};
 };
 
 struct RingFigures {
@@ -93,7 +104,8 @@ struct RingFigures {
 struct RingComparison {
   RingComparisonCase c;
   double distance_m = 0.0;
-  double glow_scale = 0.0;  ///< λ of the glow's energy match (0: no glow)
+  double glow_scale = 0.0;  ///< λ of the glow's energy match (0: no glow; 1: tables)
+  bool glow_from_table = false;  ///< the glow came from the multiple-scattering tables
   bool lamp_visible = false;
   std::vector<RingFigures> rings;  ///< the rings, then the frame
   double fogbeam_seconds = 0.0, path_tracer_seconds = 0.0;
@@ -115,7 +127,7 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   Scene scene;
   scene.source = "validate --path-tracer";
   scene.fog.extinction_per_m = c.extinction_per_m;
-  scene.fog.albedo = 1.0;
+  scene.fog.albedo = c.albedo;
   scene.fog.phase = c.phase;
   scene.camera.position_m = Vec3(0.0);
   scene.camera.worldFromCamera = Mat3(1.0);
@@ -125,10 +137,14 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   SceneLamp lamp;
   lamp.name = "lamp";
   lamp.lamp.position_m = Vec3(out.distance_m, 0.0, 0.0);
-  lamp.lamp.worldFromLamp = worldFromAxis(Vec3(-1.0, 0.0, 0.0));  // facing the eye (isotropic: no matter)
-  auto profile = makeProfile(IsotropicProfile{c.intensity_cd});
-  if (!profile) return profile.error();
-  lamp.lamp.profile = *profile;
+  lamp.lamp.worldFromLamp = worldFromAxis(c.lamp_axis);
+  if (c.profile) {
+    lamp.lamp.profile = c.profile;
+  } else {
+    auto profile = makeProfile(IsotropicProfile{c.intensity_cd});
+    if (!profile) return profile.error();
+    lamp.lamp.profile = *profile;
+  }
   scene.lamps.push_back(lamp);
   SurfaceBuffers surface;
   surface.resize(pixels, pixels);
@@ -165,6 +181,7 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   if (!report.lamps.empty()) {
     out.lamp_visible = report.lamps[0].visible;
     out.glow_scale = report.lamps[0].glow_scale;
+    out.glow_from_table = report.lamps[0].glow_from_table;
   }
   out.rings.resize(nRings + 1);
   for (std::size_t r = 0; r <= nRings; ++r) {

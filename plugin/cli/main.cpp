@@ -1,5 +1,5 @@
 // fogbeam — the single executable. Subcommands: validate, profile (issue 2), render, bench
-// (issue 3), serve, replay, view, send (issue 5).
+// (issue 3), serve, replay, view, send (issue 5), tables (issue 18).
 //
 // The whole command line is here: every subcommand's options, help texts and checks, filled into
 // the plain options struct of cmd_X.hpp and handed to runX() (cmd_X.cpp). This is the one
@@ -12,6 +12,7 @@
 #include "cmd_replay.hpp"
 #include "cmd_send.hpp"
 #include "cmd_serve.hpp"
+#include "cmd_tables.hpp"
 #include "cmd_validate.hpp"
 #include "cmd_view.hpp"
 
@@ -205,6 +206,20 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   sub->callback([o, &exitCode] { exitCode = runBench(*o); });
 }
 
+void addTablesCommand(CLI::App& app, int& exitCode) {
+  auto o = std::make_shared<TablesOptions>();
+  auto* sub = app.add_subcommand("tables", "Estimate a multiple-scattering table for one phase function (the glow "
+                                           "layer's; docs/physics.md, \"Multiple scattering tables\")");
+  sub->add_option("--phase", o->phase, "phase function")->check(CLI::IsMember({"henyey-greenstein", "fog-mie", "isotropic"}));
+  sub->add_option("--g", o->g, "HG asymmetry g (henyey-greenstein)")->check(CLI::Range(-0.99, 0.99));
+  sub->add_option("--droplet-diameter", o->dropletDiameter_um, "droplet diameter in um (fog-mie)")->check(CLI::Range(5.0, 50.0));
+  sub->add_option("--paths", o->paths, "Monte Carlo paths (default 80000)")->check(CLI::Range(2, 100000000));
+  sub->add_option("--seed", o->seed, "random seed (default 1)");
+  sub->add_option("--threads", o->threads, "threads (default: all)");
+  sub->add_option("--out", o->out, "table file to write")->required();
+  sub->callback([o, &exitCode] { exitCode = runTables(*o); });
+}
+
 void addServeCommand(CLI::App& app, int& exitCode) {
   auto o = std::make_shared<ServeOptions>();
   auto* sub = app.add_subcommand(
@@ -335,6 +350,7 @@ int main(int argc, char** argv) {
   fogbeam::cli::addReplayCommand(app, exitCode);
   fogbeam::cli::addSendCommand(app, exitCode);
   fogbeam::cli::addViewCommand(app, exitCode);
+  fogbeam::cli::addTablesCommand(app, exitCode);
   CLI11_PARSE(app, argc, argv);
   return exitCode;
 }

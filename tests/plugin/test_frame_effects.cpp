@@ -141,8 +141,56 @@ TEST(ChannelRendererEffects, GlareOfAnOncomingCarRisesAsItApproaches) {
   }
 }
 
-TEST(ChannelRendererEffects, GlowSurroundsAVisibleLampAndAddsToTheComposite) {
+// The default glow (the multiple-scattering tables): brightest at the lamp's image and falling
+// away from it, present at any optical distance (the tables start at K_t R = 0.25), none on
+// surfaces nearer than half the lamp's distance; in the composite.
+TEST(ChannelRendererEffects, TableGlowPeaksAtTheLampAndFallsAwayFromIt) {
   const ServiceConfig cfg = configWith({"glow.enabled=true"});
+  const Scene world = worldOf(cfg);
+  auto r = ChannelRenderer::create(cfg, 0, world, nullptr);
+  ASSERT_TRUE(r) << r.error().message;
+  RenderedFrame f;
+  ASSERT_TRUE((*r)->render(stateAt(-40.0, ipc::light::kLowBeam), ipc::Clock::now(), true, f));
+  const auto* lamp = lampNamed(f.effects, "street lamp");
+  ASSERT_NE(lamp, nullptr);
+  EXPECT_TRUE(lamp->glow_from_table);
+  EXPECT_EQ(lamp->apsf_terms, 0);
+  EXPECT_GT(lamp->glow_peak_cd_m2, 0.0);
+  ASSERT_EQ(f.layers.glow.size(), 3u * kWidth * kHeight);
+  const Vec3 eye{-40.0, 0.37, 1.2};
+  const Vec3 d = world.lamps.at(0).lamp.position_m - eye;
+  const double focal = 0.5 * kWidth / std::tan(radians(30.0));
+  const int li = static_cast<int>(0.5 * kWidth - focal * d.y / d.x);
+  const int lj = static_cast<int>(0.5 * kHeight - focal * d.z / d.x);
+  ASSERT_TRUE(li >= 0 && li < kWidth && lj >= 0 && lj < kHeight);
+  const double atLamp = at(f.layers.glow, li, lj), left = at(f.layers.glow, li - 20, lj),
+               right = at(f.layers.glow, li + 20, lj);
+  EXPECT_GT(left, 0.0);
+  EXPECT_GT(right, 0.0);
+  EXPECT_GT(atLamp, 2.0 * std::max(left, right));
+  EXPECT_EQ(at(f.layers.glow, kWidth / 2, kHeight - 1), 0.0);
+  std::printf("  street lamp at %.1f m (K_t R %.2f): table glow at its pixel %.3e cd/m2, 20 px left %.3e, right %.3e\n",
+              lamp->distance_m, lamp->optical_distance, atLamp, left, right);
+  RenderedFrame near;
+  ASSERT_TRUE((*r)->render(stateAt(-3.0, ipc::light::kLowBeam), ipc::Clock::now(), true, near));
+  const auto* nearLamp = lampNamed(near.effects, "street lamp");
+  ASSERT_NE(nearLamp, nullptr);
+  EXPECT_LT(nearLamp->optical_distance, 1.1);
+  EXPECT_GT(sum(near.layers.glow), 0.0);
+  ServiceConfig off = cfg;
+  off.effects.glow.enabled = false;
+  auto r0 = ChannelRenderer::create(off, 0, world, nullptr);
+  ASSERT_TRUE(r0) << r0.error().message;
+  RenderedFrame g;
+  ASSERT_TRUE((*r0)->render(stateAt(-40.0, ipc::light::kLowBeam), ipc::Clock::now(), true, g));
+  for (std::size_t k = 0; k < g.layers.composite.size(); ++k) {
+    const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]);
+    ASSERT_NEAR(f.layers.composite[k], want, 1e-4 * std::max(want, 1e-3)) << k;
+  }
+}
+
+TEST(ChannelRendererEffects, ApsfGlowSurroundsAVisibleLampAndAddsToTheComposite) {
+  const ServiceConfig cfg = configWith({"glow.enabled=true", "glow.model=\"apsf\""});
   const Scene world = worldOf(cfg);
   auto r = ChannelRenderer::create(cfg, 0, world, nullptr);
   ASSERT_TRUE(r) << r.error().message;

@@ -4,6 +4,7 @@
 #include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/physics/glow.hpp>
 #include <fogbeam/physics/medium.hpp>
+#include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
@@ -160,42 +161,54 @@ double angleToLamp(const Scene& s, int i, int j) {
 
 std::size_t px(int i, int j) { return 3 * (static_cast<std::size_t>(j) * 95 + static_cast<std::size_t>(i)); }
 
+// Both glow models: the layer is the model's curve for this R × the source intensity around the
+// lamp's image (the tables, the default: glowCurveFromTable; the APSF: glowCurve).
 TEST(LampEffectsLayers, GlowIsTheCurveAroundTheLampsImage) {
-  FxScene s = setup();
-  auto pool = std::make_shared<ThreadPool>(2);
-  LampEffects fx = LampEffects::build(s.scene, glowOn(), GlareOptions{}, pool).value();
-  std::vector<float> glow, glare;
-  LampEffectsReport rep;
-  fx.evaluate(s.scene, s.surface, glow, glare, rep);
-  ASSERT_EQ(glow.size(), 3u * 95 * 55);
-  EXPECT_TRUE(glare.empty());
-  ASSERT_EQ(rep.lamps.size(), 1u);
-  const double R = glm::length(s.scene.lamps[0].lamp.position_m - s.scene.camera.position_m);
-  EXPECT_TRUE(rep.lamps[0].visible);
-  EXPECT_NEAR(rep.lamps[0].optical_distance, 0.03 * R, 1e-12);
-  EXPECT_NEAR(rep.lamps[0].glow_source_cd, 5000.0, 1e-9);  // isotropic: the cone's mean is I
-  // Independently: the curve for this R, × the source intensity (T ≥ fade_in: no fade).
-  const GlowCurve c = glowCurve(*kernels::IsoTable::get(s.scene.fog.phase), s.scene.fog, R).value();
-  EXPECT_NEAR(rep.lamps[0].glow_scale, c.scale, 1e-12);
-  double peak = 0.0;
-  for (float v : glow) peak = std::max(peak, static_cast<double>(v));
-  ASSERT_GT(peak, 0.0);
-  int checked = 0;
-  for (int j = 0; j < 55; j += 3)
-    for (int i = 0; i < 95; i += 3) {
-      const double expected = 5000.0 * curveAt(c.theta, c.glow, angleToLamp(s.scene, i, j));
-      const double got = glow[px(i, j)];
-      if (expected < 0.01 * peak) {
-        EXPECT_LT(got, 0.02 * peak);
-        continue;
+  for (const GlowModel model : {GlowModel::Table, GlowModel::Apsf}) {
+    SCOPED_TRACE(std::string(toString(model)));
+    FxScene s = setup();
+    auto pool = std::make_shared<ThreadPool>(2);
+    GlowOptions opt = glowOn();
+    opt.model = model;
+    LampEffects fx = LampEffects::build(s.scene, opt, GlareOptions{}, pool).value();
+    std::vector<float> glow, glare;
+    LampEffectsReport rep;
+    fx.evaluate(s.scene, s.surface, glow, glare, rep);
+    ASSERT_EQ(glow.size(), 3u * 95 * 55);
+    EXPECT_TRUE(glare.empty());
+    ASSERT_EQ(rep.lamps.size(), 1u);
+    const double R = glm::length(s.scene.lamps[0].lamp.position_m - s.scene.camera.position_m);
+    EXPECT_TRUE(rep.lamps[0].visible);
+    EXPECT_EQ(rep.lamps[0].glow_from_table, model == GlowModel::Table);
+    EXPECT_NEAR(rep.lamps[0].optical_distance, 0.03 * R, 1e-12);
+    EXPECT_NEAR(rep.lamps[0].glow_source_cd, 5000.0, 1e-9);  // isotropic: the cone's mean is I
+    // Independently: the curve for this R, × the source intensity (T ≥ fade_in: no fade).
+    const auto iso = kernels::IsoTable::get(s.scene.fog.phase);
+    const auto ms = shippedMultipleScatteringTable(s.scene.fog.phase);
+    ASSERT_NE(ms, nullptr);
+    const GlowCurve c = model == GlowModel::Table ? glowCurveFromTable(*ms, *iso, s.scene.fog, R).value()
+                                                  : glowCurve(*iso, s.scene.fog, R).value();
+    EXPECT_NEAR(rep.lamps[0].glow_scale, c.scale, 1e-12);
+    double peak = 0.0;
+    for (float v : glow) peak = std::max(peak, static_cast<double>(v));
+    ASSERT_GT(peak, 0.0);
+    int checked = 0;
+    for (int j = 0; j < 55; j += 3)
+      for (int i = 0; i < 95; i += 3) {
+        const double expected = 5000.0 * curveAt(c.theta, c.glow, angleToLamp(s.scene, i, j));
+        const double got = glow[px(i, j)];
+        if (expected < 0.01 * peak) {
+          EXPECT_LT(got, 0.02 * peak);
+          continue;
+        }
+        EXPECT_NEAR(got, expected, 0.02 * expected) << "pixel " << i << ", " << j;
+        EXPECT_EQ(glow[px(i, j)], glow[px(i, j) + 1]);  // white lamp
+        ++checked;
       }
-      EXPECT_NEAR(got, expected, 0.02 * expected) << "pixel " << i << ", " << j;
-      EXPECT_EQ(glow[px(i, j)], glow[px(i, j) + 1]);  // white lamp
-      ++checked;
-    }
-  EXPECT_GT(checked, 50);
-  std::printf("glow: lambda %.3f, peak %.3g cd/m2, share of multiple scattering %.2f, %.2f ms\n", c.scale, peak,
-              rep.lamps[0].glow_share, 1e3 * rep.glow_seconds);
+    EXPECT_GT(checked, 50);
+    std::printf("glow (%s): scale %.3f, peak %.3g cd/m2, share of multiple scattering %.2f, %.2f ms\n",
+                std::string(toString(model)).c_str(), c.scale, peak, rep.lamps[0].glow_share, 1e3 * rep.glow_seconds);
+  }
 }
 
 TEST(LampEffectsLayers, NearerSurfacesDimTheGlowAndAHiddenLampHasNone) {

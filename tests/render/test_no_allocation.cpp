@@ -131,7 +131,8 @@ TEST(NoAllocation, SteadyGlowAndGlareFramesDoNotAllocate) {
   counting = false;
   EXPECT_EQ(allocations.load(), 0) << "heap allocations during a steady glow and glare frame";
   ASSERT_EQ(rep.lamps.size(), 2u);
-  EXPECT_GT(rep.lamps[1].apsf_terms, 0);
+  EXPECT_TRUE(rep.lamps[1].glow_from_table);
+  EXPECT_GT(rep.lamps[1].glow_peak_cd_m2, 0.0);
 }
 
 }  // namespace

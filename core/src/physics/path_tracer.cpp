@@ -184,16 +184,19 @@ PathTracer::PhaseDraw PathTracer::samplePhase(const Vec3& forward, PathRng& rng)
 }
 
 double PathTracer::phasePdf(const Vec3& forward, const Vec3& w) const noexcept {
+  // θ from the cross and dot products: accurate at the forward peak, where acos is not.
+  return phaseSamplingPdf(glm::dot(forward, w), glm::length(glm::cross(forward, w)));
+}
+
+double PathTracer::phaseSamplingPdf(double cosAngle, double sinAngle) const noexcept {
   switch (phaseKind_) {
     case 0:
       return kInvFourPi;
     case 1:
-      return std::abs(hgG_) < 1e-3 ? kInvFourPi : evalPhase(medium_.phase, glm::dot(forward, w));
+      return std::abs(hgG_) < 1e-3 ? kInvFourPi : evalPhase(medium_.phase, cosAngle);
     default: {
-      // θ from the cross and dot products: accurate at the forward peak, where acos is not.
-      const double s = glm::length(glm::cross(forward, w));
-      const double th = std::atan2(s, glm::dot(forward, w));
-      return s > 0.0 ? phaseTable_->pdf(th) / (2.0 * kPi * s) : 0.0;
+      const double th = std::atan2(sinAngle, cosAngle);
+      return sinAngle > 0.0 ? phaseTable_->pdf(th) / (2.0 * kPi * sinAngle) : 0.0;
     }
   }
 }

@@ -1,6 +1,7 @@
 #include <fogbeam/render/lamp_effects.hpp>
 
 #include <fogbeam/physics/glow.hpp>
+#include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 
 #include <algorithm>
@@ -38,7 +39,55 @@ double fluxOver(const std::vector<double>& theta, const std::vector<double>& L) 
   return 2.0 * kPi * sum;
 }
 
+// θ_i = 2 asin((i / (n − 1))²) (GlowCurve).
+double glowNodeAngle(std::size_t i, std::size_t n) {
+  const double u = static_cast<double>(i) / static_cast<double>(n - 1);
+  return 2.0 * std::asin(std::min(u * u, 1.0));
+}
+
+// S₁ for the sky ray at θ from an isotropic source of 1 cd at R (eq. 3 with the F table, Ω = 1):
+// K_t e^{−K_t R cos θ} / h · [F(k, π/2) − F(k, θ0)], h = R sin θ, k = K_t h, θ0 = θ − π/2.
+// Rays looking away from the source (θ0 > 0): the tail integral directly (the table's
+// difference of two O(1) values would be amplified by e^{K_t R |cos θ|}).
+// At θ = 0 (towards the source) S₁ ~ 1/θ: +inf; at θ = π it is finite and weighs nothing
+// in the flux (sin θ = 0) nor on screen: 0.
+double singleAt(const kernels::IsoTable& table, double kt, double R, double theta) {
+  const double cosT = std::cos(theta), sinT = std::sin(theta);
+  double single = theta < 0.5 * kPi ? std::numeric_limits<double>::infinity() : 0.0;
+  if (sinT > 1e-12) {
+    const double h = R * sinT, k = kt * h, th0 = theta - 0.5 * kPi;
+    const double bracket = th0 > 0.0 ? table.tailIntegral(k, th0)
+                                     : table.lookup(k, std::numeric_limits<double>::infinity()) -
+                                           table.lookup(k, -cosT / sinT);
+    single = kt * std::exp(-kt * R * cosT) / h * std::max(bracket, 0.0);
+  }
+  return single;
+}
+
 }  // namespace
+
+Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table, const Medium& fog,
+                                     double distance_m, int nodes) {
+  const double kt = fog.extinction_per_m, R = distance_m;
+  if (nodes < 16) return Error{"glow: at least 16 nodes"};
+  if (!(kt > 0.0 && R > 0.0)) return Error{"glow: extinction and distance must be > 0"};
+  GlowCurve c;
+  const auto n = static_cast<std::size_t>(nodes);
+  c.theta.resize(n);
+  c.single.resize(n);
+  c.glow.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double theta = glowNodeAngle(i, n);
+    c.theta[i] = theta;
+    c.single[i] = singleAt(table, kt, R, theta);
+    // Orders ≥ 2 of a 1 cd source (multiple_scattering.hpp): K_t² f(K_t R, θ, Ω), albedo included.
+    c.glow[i] = ms.radiance(1.0, kt, R, theta, fog.albedo);
+  }
+  c.scale = 1.0;
+  c.single_flux = fog.albedo * R * R * fluxOver(c.theta, c.single);
+  c.multiple_flux = R * R * fluxOver(c.theta, c.glow);
+  return c;
+}
 
 Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, double distance_m, int nodes) {
   const double kt = fog.extinction_per_m, R = distance_m, T = kt * R;
@@ -55,26 +104,11 @@ Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, d
   c.glow.assign(n, 0.0);
   std::vector<double> excess(n, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
-    const double u = static_cast<double>(i) / static_cast<double>(n - 1);
-    const double theta = 2.0 * std::asin(std::min(u * u, 1.0));
+    const double theta = glowNodeAngle(i, n);
     c.theta[i] = theta;
-    const double cosT = std::cos(theta), sinT = std::sin(theta);
-    // S₁ for the sky ray at θ from the source (eq. 3 with the F table, Ω = 1, I = 1 cd):
-    // K_t e^{−K_t R cos θ} / h · [F(k, π/2) − F(k, θ0)], h = R sin θ, k = K_t h, θ0 = θ − π/2.
-    // Rays looking away from the source (θ0 > 0): the tail integral directly (the table's
-    // difference of two O(1) values would be amplified by e^{K_t R |cos θ|}).
-    // At θ = 0 (towards the source) S₁ ~ 1/θ: +inf; at θ = π it is finite and weighs nothing
-    // in the flux (sin θ = 0) nor on screen: 0.
-    double single = theta < 0.5 * kPi ? std::numeric_limits<double>::infinity() : 0.0;
-    if (sinT > 1e-12) {
-      const double h = R * sinT, k = kt * h, th0 = theta - 0.5 * kPi;
-      const double bracket = th0 > 0.0 ? table.tailIntegral(k, th0)
-                                       : table.lookup(k, std::numeric_limits<double>::infinity()) -
-                                             table.lookup(k, -cosT / sinT);
-      single = kt * std::exp(-kt * R * cosT) / h * std::max(bracket, 0.0);
-    }
+    const double single = singleAt(table, kt, R, theta);
     c.single[i] = single;
-    c.apsf[i] = apsf->radiance(cosT, 1.0, kt);
+    c.apsf[i] = apsf->radiance(std::cos(theta), 1.0, kt);
     excess[i] = std::max(0.0, c.apsf[i] - single);
   }
   // Energy (header comment): R² Φ[S₁ + λ·excess] = 1 − e^{−T} for 1 cd; the multiple part then
@@ -119,6 +153,10 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
 
 struct LampEffects::Tables {
   std::shared_ptr<const kernels::IsoTable> iso;  // single scattering of the glow's isotropic source
+  // The glow's multiple-scattering table for the frame's phase (GlowModel::Table; nullptr: the APSF).
+  std::shared_ptr<const MultipleScatteringTable> ms;
+  PhaseIdentity msPhase{};
+  bool msLooked = false;
   std::vector<float> cieGlare;                   // CIE 146 L_v/E per node, (cd/m²)/lux
   struct Radial {
     float e[3] = {1, 0, 0};      // lamp direction, camera frame
@@ -135,6 +173,7 @@ struct LampEffects::Tables {
     bool valid = false, ok = false;
     double R = 0.0, kt = 0.0, albedo = 0.0;
     PhaseIdentity phase{};
+    bool fromTable = false;
     double scale = 0.0, single_flux = 0.0, multiple_flux = 0.0;
     int terms = 0;
     std::vector<double> glow;  // kNodes
@@ -361,6 +400,12 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   // frames): IsoTable::get returns the cached one while the phase stays (a map look-up), and
   // builds a new one (~0.2 s) when it changes.
   if (glow_.enabled) t.iso = kernels::IsoTable::get(fog.phase);
+  if (glow_.enabled && glow_.model == GlowModel::Table && !(t.msLooked && t.msPhase == phaseIdentity(fog.phase))) {
+    t.ms = shippedMultipleScatteringTable(fog.phase);
+    t.msPhase = phaseIdentity(fog.phase);
+    t.msLooked = true;
+  }
+  if (glow_.model != GlowModel::Table) t.ms = nullptr;
 
   // The scene may hold more lamps than at build() (traffic arriving): they start switched on;
   // the buffers grow only then, so a steady scene allocates nothing per frame.
@@ -407,7 +452,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     // visible: a distant lamp is smaller than a pixel, whose centre ray may meet the road just
     // in front of it (at 104 m a 320 px wide, 60° view's pixel spans 0.34 m, half a low beam's
     // height above the road), and a single pixel made lamps flicker between hidden and seen.
-    bool visible = eCam.x > 0.0;
+    bool visible = eCam.x > 0.0, hidden = false;
     if (visible) {
       const double x = c.x - f * eCam.y / eCam.x, y = c.y - f * eCam.z / eCam.x;
       if (x >= 0.0 && y >= 0.0 && x < cam.width && y < cam.height) {
@@ -420,6 +465,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
             reaches = reaches || !(static_cast<double>(surface.distance[k]) < 0.98 * R);
           }
         visible = reaches;
+        hidden = !reaches;
       }
     }
     rep.visible = visible && intensity > 0.0;
@@ -436,16 +482,24 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
                                         veilingLuminancePerLux(std::acos(std::clamp(eCam.x, -1.0, 1.0)) * 180.0 / kPi,
                                                                glare_.age_years, glare_.pigmentation);
     }
-    if (glow_.enabled && rep.visible && rep.optical_distance >= Apsf::minOpticalDistance()) {
+    // Which lamps glow. The tables (model = table): every lamp not hidden behind a surface,
+    // whether in the frame, beside it or behind the eye, and whatever its intensity towards the
+    // eye: multiply scattered light fills the fog around it in every direction (up to θ = π).
+    // The APSF: lamps in view only, from K_t R = 1.1 (the series' limit).
+    const bool fromTable = t.ms != nullptr;
+    const bool glows = fromTable ? !hidden : rep.visible && rep.optical_distance >= Apsf::minOpticalDistance();
+    if (glow_.enabled && glows) {
       Tables::CurveCache& cc = t.curves[li];
       const PhaseIdentity phaseId = phaseIdentity(fog.phase);
-      if (!(cc.valid && cc.R == R && cc.kt == kt && cc.albedo == fog.albedo && cc.phase == phaseId)) {
-        auto curve = glowCurve(*t.iso, fog, R, kNodes);
+      if (!(cc.valid && cc.R == R && cc.kt == kt && cc.albedo == fog.albedo && cc.phase == phaseId &&
+            cc.fromTable == fromTable)) {
+        auto curve = fromTable ? glowCurveFromTable(*t.ms, *t.iso, fog, R, kNodes) : glowCurve(*t.iso, fog, R, kNodes);
         cc.valid = true;
         cc.R = R;
         cc.kt = kt;
         cc.albedo = fog.albedo;
         cc.phase = phaseId;
+        cc.fromTable = fromTable;
         cc.ok = static_cast<bool>(curve);
         if (curve) {
           cc.glow = curve->glow;
@@ -462,9 +516,11 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         rep.glow_share = total > 0.0 ? cc.multiple_flux / total : 0.0;
         const double source = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
         rep.glow_source_cd = luminous * source;
-        const double fade = std::clamp((rep.optical_distance - Apsf::minOpticalDistance()) /
-                                           (glow_.fade_in - Apsf::minOpticalDistance() + 1e-12),
-                                       0.0, 1.0);
+        rep.glow_from_table = fromTable;
+        const double fade = fromTable ? 1.0
+                                      : std::clamp((rep.optical_distance - Apsf::minOpticalDistance()) /
+                                                       (glow_.fade_in - Apsf::minOpticalDistance() + 1e-12),
+                                                   0.0, 1.0);
         float* table = t.glowTables.data() + static_cast<std::size_t>(kNodes) * li;
         for (int i = 0; i < kNodes; ++i) {
           const double g = fade * source * cc.glow[static_cast<std::size_t>(i)];

@@ -4,5 +4,6 @@
 namespace fogbeam {
 
 std::string_view toString(AirlightDevice d) { return d == AirlightDevice::Gpu ? "gpu" : "cpu"; }
+std::string_view toString(GlowModel m) { return m == GlowModel::Apsf ? "apsf" : "table"; }
 
 }  // namespace fogbeam

@@ -283,6 +283,7 @@ namespace {
 // the same keys with the same checks.
 constexpr std::array kGlowKeys{
     KeySpec{"enabled"},
+    KeySpec{"model"},
     KeySpec{"fade_in"},
 };
 constexpr std::array kGlareKeys{
@@ -296,6 +297,7 @@ constexpr std::array kRenderKeys{
 };
 
 constexpr std::array<std::string_view, 2> kDevices{"cpu", "gpu"};
+constexpr std::array<std::string_view, 2> kGlowModels{"table", "apsf"};
 
 }  // namespace
 
@@ -334,6 +336,7 @@ GlowOptions parseGlow(const Section& s, const GlowOptions& fallback) {
   s.checkKeys(kGlowKeys);
   GlowOptions g = fallback;
   g.enabled = s.boolean("enabled", true);
+  g.model = s.choice("model", kGlowModels, toString(g.model)) == "apsf" ? GlowModel::Apsf : GlowModel::Table;
   g.fade_in = s.number("fade_in", Range{Apsf::minOpticalDistance(), kInf, false, false}, g.fade_in);
   return g;
 }

@@ -178,6 +178,10 @@ class PathTracer {
     double weight;
   };
   [[nodiscard]] PhaseDraw samplePhase(const Vec3& forward, PathRng& rng) const noexcept;
+  /// The density (1/sr) with which samplePhase draws a direction at angle α from `forward`, given
+  /// cos α and sin α ≥ 0 (the phase function itself for HG and isotropic; the inverse-CDF table's
+  /// density for fog-mie). For estimators that combine phase sampling with other strategies.
+  [[nodiscard]] double phaseSamplingPdf(double cosAngle, double sinAngle) const noexcept;
 
  private:
   [[nodiscard]] double phasePdf(const Vec3& forward, const Vec3& w) const noexcept;

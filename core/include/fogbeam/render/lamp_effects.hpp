@@ -2,8 +2,14 @@
 // lamps in view. Formulas and their sources: fogbeam/physics/glow.hpp; design and measurements:
 // docs/airlight.md, "Beyond single scattering".
 //
-//  * Glow: per visible lamp, the multiply-scattered radiance around its image as a function of
-//    the angle θ from it (glowCurve below):
+//  * Glow: per lamp, the multiply-scattered radiance around it as a function of the angle θ from
+//    it. Two models (GlowOptions::model):
+//    - Table (default): glow(θ) = K_t² f(K_t R, θ, Ω) per cd of source, f fogbeam's
+//      multiple-scattering table for the fog's phase function (orders ≥ 2, estimated by path
+//      tracing; fogbeam/physics/multiple_scattering.hpp; glowCurveFromTable). Every lamp that is on
+//      and not hidden behind a surface glows, in the frame or not (up to θ = π), from any K_t R.
+//      A phase without a shipped table (shippedMultipleScatteringTable) takes the APSF.
+//    - Apsf, per visible lamp from K_t R = 1.1 (glowCurve below):
 //        glow(θ) = λ · max(0, A(T, cos θ) − S₁(θ)),
 //    A the Narasimhan–Nayar APSF (all orders, albedo 1) for the lamp's optical distance
 //    T = K_t R and the fog's mean cosine q, S₁ the exact single scattering of the same source
@@ -65,6 +71,8 @@
 
 namespace fogbeam {
 
+class MultipleScatteringTable;
+
 /// How LampEffects fills its layers (header comment): Fast (default) interpolates a coarse
 /// grid where the layers are smooth and evaluates per pixel near the lamps' images; Exact
 /// evaluates every pixel (the reference the fast layers are tested against).
@@ -84,7 +92,8 @@ struct LampEffectsReport {
     double glow_peak_cd_m2 = 0.0;    ///< largest glow radiance around its image
     double glow_scale = 0.0;         ///< λ (energy match), 0 without glow
     double glow_share = 0.0;         ///< multiple / (single + multiple) scattered flux at the eye
-    int apsf_terms = 0;              ///< Legendre terms summed (0: no glow)
+    int apsf_terms = 0;              ///< Legendre terms summed (0: no glow, or the tables)
+    bool glow_from_table = false;    ///< the glow came from the multiple-scattering tables
   };
   std::vector<Lamp> lamps;
   double eye_illuminance_lx = 0.0;        ///< Σ over visible lamps
@@ -108,6 +117,10 @@ struct GlowCurve {
 /// Errors when K_t R < Apsf::minOpticalDistance() or the series does not converge.
 [[nodiscard]] Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, double distance_m,
                                           int nodes = 512);
+/// The same nodes from a multiple-scattering table (GlowModel::Table): glow = K_t² f(K_t R, θ, Ω)
+/// (orders ≥ 2, albedo included; no clamp, no energy match: scale = 1, apsf empty, terms 0).
+[[nodiscard]] Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table,
+                                                   const Medium& fog, double distance_m, int nodes = 512);
 /// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
 /// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
 [[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);

@@ -13,13 +13,23 @@
 
 namespace fogbeam {
 
-/// Glow around lamps seen through fog (Narasimhan–Nayar APSF, energy-matched to the
-/// single-scattering layer; lamp_effects.hpp).
+/// Where the glow's multiply scattered light comes from (lamp_effects.hpp).
+enum class GlowModel {
+  /// Tables of orders ≥ 2 estimated by path tracing per phase function
+  /// (fogbeam/physics/multiple_scattering.hpp); for a phase with no shipped table, Apsf.
+  Table,
+  /// Narasimhan–Nayar APSF less the exact single scattering, energy-matched (before 2026-11-27).
+  Apsf,
+};
+[[nodiscard]] std::string_view toString(GlowModel m);
+
+/// Glow around lamps seen through fog: the light scattered more than once (lamp_effects.hpp).
 struct GlowOptions {
   bool enabled = false;
-  /// Optical distance K_t R from which a lamp's glow counts fully; it fades in linearly from
-  /// Apsf::minOpticalDistance() (1.1), where the series stops converging, so that an
-  /// approaching car's glow does not pop. ≥ 1.1.
+  GlowModel model = GlowModel::Table;
+  /// Apsf only: optical distance K_t R from which a lamp's glow counts fully; it fades in
+  /// linearly from Apsf::minOpticalDistance() (1.1), where the series stops converging, so that
+  /// an approaching car's glow does not pop. ≥ 1.1.
   double fade_in = 2.0;
 };
 

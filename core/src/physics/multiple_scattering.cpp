@@ -1,0 +1,514 @@
+// fogbeam — multiple-scattering tables (fogbeam/physics/multiple_scattering.hpp; method and
+// checks in docs/physics.md, "Multiple scattering tables").
+#include <fogbeam/physics/multiple_scattering.hpp>
+
+#include "physics/airlight_tables.hpp"
+
+#include <fogbeam/physics/path_tracer.hpp>
+#include <fogbeam/util/thread_pool.hpp>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+namespace fogbeam {
+
+namespace {
+
+constexpr double kHalfPi = 0.5 * kPi;
+constexpr double kDeg = kPi / 180.0;
+// A lamp farther than this (optical depths) from a vertex gets nothing from it: the segment's
+// integral is below e^{−35} p_max π / h (every point's lamp → point → vertex path is ≥ D long).
+constexpr double kReach = 35.0;
+// G-moment table resolution: the accurate method's defaults (AirlightOptions).
+constexpr int kGTheta = 1024, kGK = 192;
+constexpr double kGKMax = 2000.0;
+
+double tanHalfAngleSum(double theta) { return std::tan(0.25 * kPi + 0.5 * theta); }
+
+// The single-scattering integral of a unit isotropic lamp along the whole ray from a vertex
+// (K_t = 1, Ω = 1): e^{−p}/h ∫_{θ0}^{π/2} e^{−h s(θ)} p(−sin θ) dθ, s = tan(π/4 + θ/2)
+// (eq. 3 of docs/physics.md), from the cumulative G moments; rays within 1° of straight away from
+// the lamp (θ0 near π/2, where the table difference is imprecise: detail::kAwayConeRad) by a
+// 16-point Gauss–Legendre rule in θ with e^{−p} folded into the exponent (backscatter, smooth).
+struct SegmentIntegral {
+  const detail::GMomentTable& g;
+  const Phase& phase;
+
+  double operator()(double p, double h, double theta0) const noexcept {
+    if (theta0 > kHalfPi - detail::kAwayConeRad) {
+      static constexpr std::array<double, 8> x{0.0950125098376374, 0.2816035507792589, 0.4580167776572274,
+                                               0.6178762444026438, 0.7554044083550030, 0.8656312023878318,
+                                               0.9445750230732326, 0.9894009349916499};
+      static constexpr std::array<double, 8> w{0.1894506104550685, 0.1826034150449236, 0.1691565193950025,
+                                               0.1495959888165767, 0.1246289712555339, 0.0951585116824928,
+                                               0.0622535239386479, 0.0271524594117541};
+      const double a = theta0, b = kHalfPi, mid = 0.5 * (a + b), half = 0.5 * (b - a);
+      double sum = 0.0;
+      for (std::size_t i = 0; i < x.size(); ++i)
+        for (double sgn : {-1.0, 1.0}) {
+          const double th = mid + sgn * half * x[i];
+          const double expo = p + h * tanHalfAngleSum(th);
+          sum += w[i] * std::exp(-expo) * evalPhase(phase, -std::sin(th));
+        }
+      return half * sum / h;
+    }
+    const auto kw = g.kWeights(h);
+    const double full = g.cumulative(kw, kHalfPi)[0], part = g.cumulative(kw, theta0)[0];
+    return std::exp(-p) / h * std::max(full - part, 0.0);
+  }
+};
+
+Status checkNodes(const std::vector<double>& v, const char* what, double lo, double hi, bool loOpen) {
+  if (v.empty()) return Error{std::string("multiple-scattering table: no ") + what + " nodes"};
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const bool inRange = std::isfinite(v[i]) && (loOpen ? v[i] > lo : v[i] >= lo) && v[i] <= hi;
+    if (!inRange || (i > 0 && !(v[i] > v[i - 1])))
+      return Error{std::string("multiple-scattering table: ") + what + " node " + std::to_string(i) + " (" +
+                   std::to_string(v[i]) + ") must be ascending in " + (loOpen ? "(" : "[") + std::to_string(lo) +
+                   ", " + std::to_string(hi) + "]"};
+  }
+  return Ok{};
+}
+
+// Position of x among ascending nodes: the cell i (nodes i, i+1) and the fraction in it, clamped.
+std::pair<std::size_t, double> locate(const std::vector<double>& nodes, double x) noexcept {
+  if (nodes.size() < 2) return {0, 0.0};
+  if (x <= nodes.front()) return {0, 0.0};
+  if (x >= nodes.back()) return {nodes.size() - 2, 1.0};
+  const auto it = std::upper_bound(nodes.begin(), nodes.end(), x);
+  const auto i = static_cast<std::size_t>(it - nodes.begin()) - 1;
+  return {i, (x - nodes[i]) / (nodes[i + 1] - nodes[i])};
+}
+
+}  // namespace
+
+MultipleScatteringOptions MultipleScatteringOptions::defaults() {
+  MultipleScatteringOptions o;
+  for (int i = 0; i <= 12; ++i) o.optical_distances.push_back(0.25 * std::pow(std::sqrt(2.0), i));
+  for (double d : {0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0, 11.3, 16.0, 22.6, 32.0, 45.0, 64.0, 90.0,
+                   120.0, 150.0, 180.0})
+    o.angles_rad.push_back(d * kDeg);
+  o.albedos = {0.7, 0.8, 0.85, 0.9, 0.94, 0.97, 0.99, 1.0};
+  return o;
+}
+
+std::string multipleScatteringTableName(const Phase& phase) {
+  char buf[64];
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&phase)) {
+    std::snprintf(buf, sizeof buf, "hg-%.3f", hg->g);
+    return buf;
+  }
+  if (const auto* fm = std::get_if<FogMiePhase>(&phase)) {
+    std::snprintf(buf, sizeof buf, "fog-mie-%.1fum", fm->diameter_um);
+    return buf;
+  }
+  return "isotropic";
+}
+
+Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phase, const MultipleScatteringOptions& options,
+                                                               ThreadPool* pool) {
+  MultipleScatteringOptions o = options;
+  const MultipleScatteringOptions d = MultipleScatteringOptions::defaults();
+  if (o.optical_distances.empty()) o.optical_distances = d.optical_distances;
+  if (o.angles_rad.empty()) o.angles_rad = d.angles_rad;
+  if (o.albedos.empty()) o.albedos = d.albedos;
+  if (Status s = checkNodes(o.optical_distances, "optical distance", 0.0, kReach, true); !s) return s.error();
+  if (Status s = checkNodes(o.angles_rad, "angle", 0.0, kPi, true); !s) return s.error();
+  if (Status s = checkNodes(o.albedos, "albedo", 0.0, 1.0, true); !s) return s.error();
+  if (o.paths < 2) return Error{"multiple-scattering table: at least 2 paths (the standard error needs two)"};
+  if (o.max_order < 2) return Error{"multiple-scattering table: max_order must be at least 2"};
+  if (o.batch_size < 1) return Error{"multiple-scattering table: batch_size must be at least 1"};
+  const auto t0 = std::chrono::steady_clock::now();
+
+  // The phase sampler of the path tracer (exact for HG and isotropic, inverse-CDF table with the
+  // weight p/pdf for fog-mie); its lamp is not used.
+  Medium unit{1.0, 1.0, phase, 0.0};
+  Lamp dummy;
+  auto iso = makeProfile(IsotropicProfile{1.0});
+  if (!iso) return iso.error();
+  dummy.profile = *iso;
+  auto tracer = PathTracer::build({dummy}, unit);
+  if (!tracer) return tracer.error();
+  const detail::GMomentTable g(phase, kGTheta, kGK, kGKMax);
+  const SegmentIntegral segment{g, phase};
+  const bool tabulated = std::holds_alternative<FogMiePhase>(phase);
+
+  MultipleScatteringTable t;
+  t.phase_ = phase;
+  t.t_ = o.optical_distances;
+  t.theta_ = o.angles_rad;
+  t.albedo_ = o.albedos;
+  t.paths_ = o.paths;
+  t.seed_ = o.seed;
+  t.maxOrder_ = o.max_order;
+  const std::size_t nT = t.t_.size(), nTh = t.theta_.size(), nA = t.albedo_.size(), nL = nT * nTh;
+  std::vector<Vec3> lamps(nL);
+  for (std::size_t i = 0; i < nT; ++i)
+    for (std::size_t j = 0; j < nTh; ++j)
+      lamps[i * nTh + j] = t.t_[i] * Vec3(std::sin(t.theta_[j]), 0.0, std::cos(t.theta_[j]));
+  const double reach = t.t_.back();
+
+  const std::uint64_t batches = (o.paths + o.batch_size - 1) / o.batch_size;
+  // Per batch: Σ x and Σ x² per (albedo, lamp), and the events.
+  std::vector<double> sums(batches * nA * nL * 2, 0.0);
+  std::vector<std::uint64_t> events(batches, 0);
+  auto runBatch = [&](std::size_t b) {
+    double* sum = sums.data() + b * nA * nL * 2;
+    double* sq = sum + nA * nL;
+    std::vector<double> acc(nA * nL);
+    std::vector<double> wA(nA);
+    const std::uint64_t first = b * o.batch_size, last = std::min<std::uint64_t>(o.paths, first + o.batch_size);
+    for (std::uint64_t s = first; s < last; ++s) {
+      PathRng rng(o.seed, 0, s);
+      std::fill(acc.begin(), acc.end(), 0.0);
+      {
+        Vec3 x(0.0), w(0.0, 0.0, 1.0);  // the eye, looking along the camera ray
+        double beta = 1.0;
+        for (int n = 1; n < o.max_order; ++n) {
+          // The n-th scattering vertex: free flight, then a new direction from the phase function.
+          x += -std::log1p(-rng.uniform()) * w;
+          const Vec3 wIn = w;
+          const PathTracer::PhaseDraw draw = tracer->samplePhase(wIn, rng);
+          w = draw.direction;
+          const double cosP = glm::dot(wIn, w), sinP = glm::length(glm::cross(wIn, w));
+          const double fP = evalPhase(phase, cosP), pdfP = tabulated ? tracer->phaseSamplingPdf(cosP, sinP) : fP;
+          const double betaIn = beta;
+          beta *= draw.weight;
+          ++events[b];
+          // The segment leaving vertex n carries order n + 1: weight Ω^{n+1} per albedo node.
+          for (std::size_t a = 0; a < nA; ++a) wA[a] = betaIn * std::pow(t.albedo_[a], n + 1);
+          // Per lamp, the segment's lamp integral S(ω) weighted by the phase function is estimated
+          // by two samples combined by the balance heuristic (Veach 1997), as the path tracer's
+          // lamp-guided NEE: the phase-sampled ω_P (which also continues the path) and ω_G drawn
+          // towards this lamp with ψ, its angle from the lamp's direction, uniform in [0, π/2]
+          // (pdf 1/(π² sin ψ)). A segment passing at h from a lamp carries ∝ 1/h; phase sampling
+          // alone gives it a logarithmically infinite variance, the mixture a bounded one.
+          for (std::size_t l = 0; l < nL; ++l) {
+            const Vec3 v = lamps[l] - x;
+            const double d2 = glm::dot(v, v);
+            if (d2 > kReach * kReach) continue;
+            const double D = std::sqrt(d2);
+            double val = 0.0;
+            {  // the phase-sampled direction
+              const double p = glm::dot(v, w);
+              const double h = std::sqrt(std::max(d2 - p * p, 1e-18));
+              const double seg = segment(p, h, std::atan2(-p, h));
+              const double pG = p > 0.0 ? 1.0 / (kPi * kPi * (h / D)) : 0.0;
+              if (seg > 0.0) val += fP * seg / (pdfP + pG);
+            }
+            {  // the guided direction: only its angles matter. The segment's lamp integral depends
+               // on (D, ψ): p = D cos ψ, h = D sin ψ, θ0 = ψ − π/2; the phase function on the angle
+               // from the incoming direction, cos = cos ψ c + sin ψ √(1 − c²) cos φ, c = ω_in · u.
+              const double psi = kHalfPi * rng.uniform(), phi = 2.0 * kPi * rng.uniform();
+              const double cpsi = std::cos(psi), spsi = std::max(std::sin(psi), 1e-12);
+              const double c = glm::dot(wIn, v) / D;
+              const double cosG =
+                  std::clamp(cpsi * c + spsi * std::sqrt(std::max(0.0, 1.0 - c * c)) * std::cos(phi), -1.0, 1.0);
+              const double fG = evalPhase(phase, cosG);
+              const double pdfG =
+                  tabulated ? tracer->phaseSamplingPdf(cosG, std::sqrt(std::max(0.0, 1.0 - cosG * cosG))) : fG;
+              const double seg = segment(D * cpsi, D * spsi, psi - kHalfPi);
+              if (seg > 0.0) val += fG * seg / (pdfG + 1.0 / (kPi * kPi * spsi));
+            }
+            if (!(val > 0.0)) continue;
+            for (std::size_t a = 0; a < nA; ++a) acc[a * nL + l] += wA[a] * val;
+          }
+          // Russian roulette on the importance 1/(1 + ρ), ρ the vertex's distance beyond the
+          // farthest lamp (a weight window: below half of the target weight 1 + ρ a path survives
+          // with probability β/(1 + ρ) and then carries 1 + ρ; unbiased). Paths that wander off
+          // end; inside the lamps' sphere none is ended before max_order. Splitting paths as they
+          // move out towards the far lamps (importance (1 + r)^a) was tried: a = 1 cost 7× the
+          // events for 1.5–2× less σ at T = 8, no better than more paths.
+          const double target = 1.0 + std::max(0.0, glm::length(x) - reach);
+          if (n >= 3 && beta < 0.5 * target) {
+            if (rng.uniform() >= beta / target) break;
+            beta = target;
+          }
+        }
+      }
+      for (std::size_t k = 0; k < acc.size(); ++k) {
+        sum[k] += acc[k];
+        sq[k] += acc[k] * acc[k];
+      }
+    }
+  };
+  if (pool != nullptr)
+    pool->parallelFor(batches, runBatch);
+  else
+    for (std::size_t b = 0; b < batches; ++b) runBatch(b);
+
+  t.mean_.assign(nA * nL, 0.0);
+  t.stderr_.assign(nA * nL, 0.0);
+  std::vector<double> sq(nA * nL, 0.0);
+  std::uint64_t allEvents = 0;
+  for (std::uint64_t b = 0; b < batches; ++b) {
+    const double* s = sums.data() + b * nA * nL * 2;
+    for (std::size_t k = 0; k < nA * nL; ++k) {
+      t.mean_[k] += s[k];
+      sq[k] += s[nA * nL + k];
+    }
+    allEvents += events[b];
+  }
+  const double N = static_cast<double>(o.paths);
+  for (std::size_t k = 0; k < nA * nL; ++k) {
+    const double m = t.mean_[k] / N;
+    const double var = std::max(0.0, sq[k] / N - m * m) * N / (N - 1.0);
+    t.mean_[k] = m;
+    t.stderr_[k] = std::sqrt(var / N);
+  }
+  t.meanEvents_ = static_cast<double>(allEvents) / N;
+  for (double v : t.t_) t.logT_.push_back(std::log(v));
+  for (double v : t.theta_) t.logTheta_.push_back(std::log(v));
+  t.buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return t;
+}
+
+double MultipleScatteringTable::valueAtAlbedo(std::size_t a, double T, double theta) const noexcept {
+  const double lt = std::log(std::max(T, t_.front())), lth = std::log(std::max(theta, theta_.front()));
+  const auto [i, fi] = locate(logT_, lt);
+  const auto [j, fj] = locate(logTheta_, lth);
+  const std::size_t i1 = std::min(i + 1, t_.size() - 1), j1 = std::min(j + 1, theta_.size() - 1);
+  const double v00 = mean_[index(a, i, j)], v01 = mean_[index(a, i, j1)], v10 = mean_[index(a, i1, j)],
+               v11 = mean_[index(a, i1, j1)];
+  double v;
+  if (v00 > 0.0 && v01 > 0.0 && v10 > 0.0 && v11 > 0.0) {
+    v = std::exp((1 - fi) * ((1 - fj) * std::log(v00) + fj * std::log(v01)) +
+                 fi * ((1 - fj) * std::log(v10) + fj * std::log(v11)));
+  } else {
+    v = (1 - fi) * ((1 - fj) * v00 + fj * v01) + fi * ((1 - fj) * v10 + fj * v11);
+  }
+  if (T < t_.front()) v *= (T / t_.front()) * (T / t_.front());
+  return std::max(v, 0.0);
+}
+
+double MultipleScatteringTable::value(double opticalDistance, double theta, double albedo) const noexcept {
+  if (!(opticalDistance > 0.0) || mean_.empty()) return 0.0;
+  const auto [a, fa] = locate(albedo_, albedo);
+  if (albedo_.size() < 2) return valueAtAlbedo(0, opticalDistance, theta);
+  const double v0 = valueAtAlbedo(a, opticalDistance, theta), v1 = valueAtAlbedo(a + 1, opticalDistance, theta);
+  if (fa == 0.0) return v0;
+  if (fa == 1.0) return v1;
+  return v0 > 0.0 && v1 > 0.0 ? std::exp((1 - fa) * std::log(v0) + fa * std::log(v1)) : (1 - fa) * v0 + fa * v1;
+}
+
+// ---- text form ----------------------------------------------------------------------------
+// fogbeam-multiple-scattering 1
+// phase <describe(phase)>            (informational; the identity below is what load checks)
+// phase_identity <kind> <a> <b> <c>
+// paths <N> seed <S> max_order <M> mean_events <E>
+// optical_distances <n> v…
+// angles_deg <n> v…
+// albedos <n> v…
+// then n_albedo × n_T × n_θ lines "mean stderr" in (albedo, T, θ) order.
+
+Status MultipleScatteringTable::save(const std::filesystem::path& path) const {
+  std::ofstream f(path);
+  if (!f) return Error{"cannot write " + path.string()};
+  f.precision(17);
+  const auto id = phaseIdentity(phase_);
+  f << "fogbeam-multiple-scattering 1\n";
+  f << "phase " << describe(phase_) << "\n";
+  f << "phase_identity " << std::get<0>(id) << ' ' << std::get<1>(id) << ' ' << std::get<2>(id) << ' '
+    << std::get<3>(id) << "\n";
+  f << "paths " << paths_ << " seed " << seed_ << " max_order " << maxOrder_ << " mean_events " << meanEvents_ << "\n";
+  auto list = [&](const char* name, const std::vector<double>& v, double scale) {
+    f << name << ' ' << v.size();
+    for (double x : v) f << ' ' << x * scale;
+    f << "\n";
+  };
+  list("optical_distances", t_, 1.0);
+  list("angles_deg", theta_, 180.0 / kPi);
+  list("albedos", albedo_, 1.0);
+  // 8 significant digits: the nodes' standard errors are ≥ 1e-4 of their values.
+  f.precision(8);
+  for (std::size_t k = 0; k < mean_.size(); ++k) f << mean_[k] << ' ' << stderr_[k] << "\n";
+  if (!f) return Error{"error writing " + path.string()};
+  return Ok{};
+}
+
+Result<MultipleScatteringTable> MultipleScatteringTable::load(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) return Error{"cannot open multiple-scattering table " + path.string()};
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse(text.str(), path.string());
+}
+
+Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view text, const std::string& source) {
+  std::istringstream f{std::string(text)};
+  int lineNo = 0;
+  std::string line;
+  auto fail = [&](const std::string& what) { return Error{source + ":" + std::to_string(lineNo) + ": " + what}; };
+  auto next = [&](std::istringstream& ss, const char* key) -> bool {
+    if (!std::getline(f, line)) return false;
+    ++lineNo;
+    ss.clear();
+    ss.str(line);
+    std::string k;
+    return static_cast<bool>(ss >> k) && k == key;
+  };
+  std::istringstream ss;
+  int version = 0;
+  if (!next(ss, "fogbeam-multiple-scattering") || !(ss >> version) || version != 1)
+    return fail("expected the header 'fogbeam-multiple-scattering 1'");
+  if (!next(ss, "phase")) return fail("expected 'phase <name>'");
+  std::size_t kind = 0;
+  double a = 0, b = 0, c = 0;
+  if (!next(ss, "phase_identity") || !(ss >> kind >> a >> b >> c))
+    return fail("expected 'phase_identity <kind> <a> <b> <c>'");
+  Phase phase;
+  if (kind == 0) {
+    phase = IsotropicPhase{};
+  } else if (kind == 1) {
+    auto p = makeHenyeyGreenstein(a);
+    if (!p) return fail(p.error().message);
+    phase = *p;
+  } else if (kind == 2) {
+    auto p = makeFogMie(a);
+    if (!p) return fail(p.error().message);
+    phase = *p;
+  } else {
+    return fail("unknown phase kind " + std::to_string(kind));
+  }
+  if (phaseIdentity(phase) != PhaseIdentity{kind, a, b, c})
+    return fail("phase_identity does not match the phase rebuilt from it (written by another version?)");
+  MultipleScatteringTable t;
+  t.phase_ = phase;
+  std::string k1, k2, k3;
+  if (!next(ss, "paths") || !(ss >> t.paths_ >> k1 >> t.seed_ >> k2 >> t.maxOrder_ >> k3 >> t.meanEvents_) ||
+      k1 != "seed" || k2 != "max_order" || k3 != "mean_events")
+    return fail("expected 'paths <N> seed <S> max_order <M> mean_events <E>'");
+  auto list = [&](const char* key, std::vector<double>& v, double scale) -> Status {
+    std::size_t n = 0;
+    if (!next(ss, key) || !(ss >> n) || n == 0 || n > 100000)
+      return fail(std::string("expected '") + key + " <count> <values…>'");
+    v.resize(n);
+    for (auto& x : v) {
+      if (!(ss >> x)) return fail(std::string(key) + ": expected " + std::to_string(n) + " numbers");
+      x *= scale;
+    }
+    return Ok{};
+  };
+  if (Status s = list("optical_distances", t.t_, 1.0); !s) return s.error();
+  if (Status s = list("angles_deg", t.theta_, kPi / 180.0); !s) return s.error();
+  if (Status s = list("albedos", t.albedo_, 1.0); !s) return s.error();
+  // Rounding of the degree values may put 180° a hair past π.
+  t.theta_.back() = std::min(t.theta_.back(), kPi);
+  if (Status s = checkNodes(t.t_, "optical distance", 0.0, kReach, true); !s) return fail(s.error().message);
+  if (Status s = checkNodes(t.theta_, "angle", 0.0, kPi, true); !s) return fail(s.error().message);
+  if (Status s = checkNodes(t.albedo_, "albedo", 0.0, 1.0, true); !s) return fail(s.error().message);
+  const std::size_t n = t.t_.size() * t.theta_.size() * t.albedo_.size();
+  t.mean_.resize(n);
+  t.stderr_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (!std::getline(f, line)) {
+      ++lineNo;
+      return fail("expected " + std::to_string(n) + " node lines, found " + std::to_string(k));
+    }
+    ++lineNo;
+    std::istringstream ls(line);
+    if (!(ls >> t.mean_[k] >> t.stderr_[k]) || !std::isfinite(t.mean_[k]) || !(t.stderr_[k] >= 0.0) || t.mean_[k] < 0.0)
+      return fail("expected '<mean ≥ 0> <standard error ≥ 0>'");
+  }
+  for (double v : t.t_) t.logT_.push_back(std::log(v));
+  for (double v : t.theta_) t.logTheta_.push_back(std::log(v));
+  return t;
+}
+
+}  // namespace fogbeam
+
+namespace fogbeam {
+
+Result<MultipleScatteringTable> MultipleScatteringTable::blend(const MultipleScatteringTable& a,
+                                                               const MultipleScatteringTable& b, double w,
+                                                               const Phase& phase) {
+  if (a.t_ != b.t_ || a.theta_ != b.theta_ || a.albedo_ != b.albedo_)
+    return Error{"multiple-scattering tables: blending needs the same nodes"};
+  MultipleScatteringTable t = a;
+  t.phase_ = phase;
+  for (std::size_t k = 0; k < t.mean_.size(); ++k) {
+    t.mean_[k] = (1.0 - w) * a.mean_[k] + w * b.mean_[k];
+    t.stderr_[k] = std::hypot((1.0 - w) * a.stderr_[k], w * b.stderr_[k]);
+  }
+  t.paths_ = std::min(a.paths_, b.paths_);
+  t.meanEvents_ = (1.0 - w) * a.meanEvents_ + w * b.meanEvents_;
+  return t;
+}
+
+namespace detail {
+struct EmbeddedTable {
+  const char* name;
+  const char* text;
+};
+extern const EmbeddedTable kEmbeddedMultipleScatteringTables[];
+extern const std::size_t kEmbeddedMultipleScatteringTableCount;
+}  // namespace detail
+
+namespace {
+
+std::shared_ptr<const MultipleScatteringTable> embedded(const std::string& name) {
+  // Parsed on first use and kept (a few hundred KB each).
+  static std::mutex mutex;
+  static std::map<std::string, std::shared_ptr<const MultipleScatteringTable>> parsed;
+  std::lock_guard lock(mutex);
+  if (auto it = parsed.find(name); it != parsed.end()) return it->second;
+  for (std::size_t i = 0; i < detail::kEmbeddedMultipleScatteringTableCount; ++i) {
+    const auto& e = detail::kEmbeddedMultipleScatteringTables[i];
+    if (name != e.name) continue;
+    auto t = MultipleScatteringTable::parse(e.text, std::string("config/multiple_scattering/") + e.name + ".msc");
+    auto sp = t ? std::make_shared<const MultipleScatteringTable>(std::move(*t)) : nullptr;
+    parsed[name] = sp;
+    return sp;
+  }
+  parsed[name] = nullptr;
+  return nullptr;
+}
+
+}  // namespace
+
+std::vector<std::string> shippedMultipleScatteringTableNames() {
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < detail::kEmbeddedMultipleScatteringTableCount; ++i)
+    names.emplace_back(detail::kEmbeddedMultipleScatteringTables[i].name);
+  return names;
+}
+
+std::shared_ptr<const MultipleScatteringTable> shippedMultipleScatteringTable(const Phase& phase) {
+  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&phase)) {
+    // Shipped g nodes; between two, blend (cached per g).
+    static constexpr std::array<double, 4> kG{0.75, 0.80, 0.85, 0.90};
+    const double g = hg->g;
+    if (!(g >= kG.front() - 1e-9 && g <= kG.back() + 1e-9)) return nullptr;
+    std::size_t i = 0;
+    while (i + 2 < kG.size() && g > kG[i + 1]) ++i;
+    const double w = std::clamp((g - kG[i]) / (kG[i + 1] - kG[i]), 0.0, 1.0);
+    if (w < 1e-9) return embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i]}));
+    if (w > 1.0 - 1e-9) return embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i + 1]}));
+    auto a = embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i]}));
+    auto b = embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i + 1]}));
+    if (!a || !b) return nullptr;
+    static std::mutex mutex;
+    static std::map<double, std::shared_ptr<const MultipleScatteringTable>> blended;
+    std::lock_guard lock(mutex);
+    if (auto it = blended.find(g); it != blended.end()) return it->second;
+    auto t = MultipleScatteringTable::blend(*a, *b, w, phase);
+    auto sp = t ? std::make_shared<const MultipleScatteringTable>(std::move(*t)) : nullptr;
+    if (blended.size() > 64) blended.clear();  // a g that changes every frame must not grow it
+    blended[g] = sp;
+    return sp;
+  }
+  if (std::holds_alternative<FogMiePhase>(phase)) {
+    auto t = embedded(multipleScatteringTableName(phase));
+    return t && phaseIdentity(t->phase()) == phaseIdentity(phase) ? t : nullptr;
+  }
+  return nullptr;
+}
+
+}  // namespace fogbeam

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Regenerates the shipped multiple-scattering tables (config/multiple_scattering/*.msc, embedded in
+# the library at build time; docs/physics.md, "Multiple scattering tables") with `fogbeam tables`.
+# Deterministic: the same binary, paths and seed write the same files on any number of threads.
+# About 4 minutes per table on a 2-core machine (80 000 paths, 286 lamp nodes, 8 albedos).
+#   scripts/multiple_scattering_tables.sh [build/release/plugin/fogbeam] [paths]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+fogbeam=${1:-build/release/plugin/fogbeam}
+paths=${2:-80000}
+out=config/multiple_scattering
+mkdir -p "$out"
+for g in 0.75 0.80 0.85 0.90; do
+  "$fogbeam" tables --phase henyey-greenstein --g "$g" --paths "$paths" --out "$out/hg-$(printf '%.3f' "$g").msc"
+done
+"$fogbeam" tables --phase fog-mie --droplet-diameter 10 --paths "$paths" --out "$out/fog-mie-10.0um.msc"
