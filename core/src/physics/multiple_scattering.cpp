@@ -63,6 +63,57 @@ struct SegmentIntegral {
     const double full = g.cumulative(kw, kHalfPi)[0], part = g.cumulative(kw, theta0)[0];
     return std::exp(-p) / h * std::max(full - part, 0.0);
   }
+
+  // The same integral split by the emission angle η at the lamp: the point at angle θ of the ray
+  // receives the light the lamp emits along u(θ) = n cos θ + ω sin θ (n the unit vector from the
+  // lamp to the ray's foot point), so cos η(θ) = u · e = ne cos θ + we sin θ = A cos(θ − φ0),
+  // e the direction from the lamp to the eye. The range [θ0, π/2] is cut where cos η crosses a
+  // bin edge (θ = φ0 ± acos(c/A)) and each piece goes to its bin. `cosEdges` descending (η
+  // ascending), bins = cosEdges.size() − 1; `out` gets += per bin; returns the total.
+  double binned(double p, double h, double theta0, double ne, double we, const std::vector<double>& cosEdges,
+                double* out) const noexcept {
+    const std::size_t bins = cosEdges.size() - 1;
+    auto binOf = [&](double c) {
+      std::size_t k = 0;
+      while (k + 1 < bins && c < cosEdges[k + 1]) ++k;
+      return k;
+    };
+    if (theta0 > kHalfPi - detail::kAwayConeRad) {
+      // Backscatter within 1° of straight away: the whole (short, smooth) range to the bin of its middle.
+      const double v = (*this)(p, h, theta0);
+      const double mid = 0.5 * (theta0 + kHalfPi);
+      out[binOf(ne * std::cos(mid) + we * std::sin(mid))] += v;
+      return v;
+    }
+    std::array<double, 40> cuts{};
+    std::size_t m = 0;
+    cuts[m++] = theta0;
+    const double A = std::hypot(ne, we), phi0 = std::atan2(we, ne);
+    for (std::size_t k = 1; k < bins && m + 3 < cuts.size(); ++k) {
+      if (!(std::abs(cosEdges[k]) < A)) continue;
+      const double d = std::acos(cosEdges[k] / A);
+      for (double t : {phi0 - d, phi0 + d}) {
+        if (t <= -kPi) t += 2.0 * kPi;
+        if (t > kPi) t -= 2.0 * kPi;
+        if (t > theta0 && t < kHalfPi) cuts[m++] = t;
+      }
+    }
+    std::sort(cuts.begin() + 1, cuts.begin() + static_cast<std::ptrdiff_t>(m));
+    cuts[m++] = kHalfPi;
+    const auto kw = g.kWeights(h);
+    const double scale = std::exp(-p) / h;
+    double prev = g.cumulative(kw, theta0)[0], total = 0.0;
+    for (std::size_t i = 1; i < m; ++i) {
+      const double cur = g.cumulative(kw, cuts[i])[0];
+      const double v = scale * std::max(cur - prev, 0.0);
+      prev = cur;
+      if (!(v > 0.0)) continue;
+      const double mid = 0.5 * (cuts[i - 1] + cuts[i]);
+      out[binOf(ne * std::cos(mid) + we * std::sin(mid))] += v;
+      total += v;
+    }
+    return total;
+  }
 };
 
 Status checkNodes(const std::vector<double>& v, const char* what, double lo, double hi, bool loOpen) {
@@ -96,6 +147,7 @@ MultipleScatteringOptions MultipleScatteringOptions::defaults() {
                    120.0, 150.0, 180.0})
     o.angles_rad.push_back(d * kDeg);
   o.albedos = {0.7, 0.8, 0.85, 0.9, 0.94, 0.97, 0.99, 1.0};
+  o.emission_edges_deg = {0.0, 3.0, 8.0, 15.0, 30.0, 60.0, 100.0, 140.0, 180.0};
   return o;
 }
 
@@ -119,6 +171,13 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
   if (o.optical_distances.empty()) o.optical_distances = d.optical_distances;
   if (o.angles_rad.empty()) o.angles_rad = d.angles_rad;
   if (o.albedos.empty()) o.albedos = d.albedos;
+  if (!o.emission_edges_deg.empty()) {
+    const auto& e = o.emission_edges_deg;
+    bool okEdges = e.size() >= 2 && e.front() == 0.0 && e.back() == 180.0;
+    for (std::size_t k = 1; k < e.size(); ++k) okEdges = okEdges && e[k] > e[k - 1];
+    if (!okEdges || e.size() > 17)
+      return Error{"multiple-scattering table: emission_edges_deg must ascend from 0 to 180 (at most 16 bins)"};
+  }
   if (Status s = checkNodes(o.optical_distances, "optical distance", 0.0, kReach, true); !s) return s.error();
   if (Status s = checkNodes(o.angles_rad, "angle", 0.0, kPi, true); !s) return s.error();
   if (Status s = checkNodes(o.albedos, "albedo", 0.0, 1.0, true); !s) return s.error();
@@ -146,6 +205,7 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
   t.theta_ = o.angles_rad;
   t.albedo_ = o.albedos;
   t.paths_ = o.paths;
+  for (double e : o.emission_edges_deg) t.edges_.push_back(e * kDeg);
   t.seed_ = o.seed;
   t.maxOrder_ = o.max_order;
   const std::size_t nT = t.t_.size(), nTh = t.theta_.size(), nA = t.albedo_.size(), nL = nT * nTh;
@@ -154,15 +214,29 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
     for (std::size_t j = 0; j < nTh; ++j)
       lamps[i * nTh + j] = t.t_[i] * Vec3(std::sin(t.theta_[j]), 0.0, std::cos(t.theta_[j]));
   const double reach = t.t_.back();
+  // Emission bins (the Ω = 1 node's light split by the angle η at the lamp from its direction to
+  // the eye): cos of the edges, descending; the unit direction from each lamp to the eye.
+  const std::size_t nK = t.edges_.empty() ? 0 : t.edges_.size() - 1;
+  std::vector<double> cosEdges;
+  for (double e : t.edges_) cosEdges.push_back(std::cos(e));
+  if (nK > 0) {
+    cosEdges.front() = 2.0;  // η = 0 and 180° exactly: every cos η falls inside
+    cosEdges.back() = -2.0;
+  }
+  std::vector<Vec3> toEye(nL);
+  for (std::size_t l = 0; l < nL; ++l) toEye[l] = -glm::normalize(lamps[l]);
 
   const std::uint64_t batches = (o.paths + o.batch_size - 1) / o.batch_size;
   // Per batch: Σ x and Σ x² per (albedo, lamp), and the events.
   std::vector<double> sums(batches * nA * nL * 2, 0.0);
+  std::vector<double> binSums(batches * nL * std::max<std::size_t>(nK, 1), 0.0);
   std::vector<std::uint64_t> events(batches, 0);
   auto runBatch = [&](std::size_t b) {
     double* sum = sums.data() + b * nA * nL * 2;
     double* sq = sum + nA * nL;
     std::vector<double> acc(nA * nL);
+    double* binAcc = binSums.data() + b * nL * std::max<std::size_t>(nK, 1);
+    std::vector<double> segBins(std::max<std::size_t>(nK, 1)), tmpBins(std::max<std::size_t>(nK, 1));
     std::vector<double> wA(nA);
     const std::uint64_t first = b * o.batch_size, last = std::min<std::uint64_t>(o.paths, first + o.batch_size);
     for (std::uint64_t s = first; s < last; ++s) {
@@ -196,12 +270,23 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
             if (d2 > kReach * kReach) continue;
             const double D = std::sqrt(d2);
             double val = 0.0;
+            const Vec3& e = toEye[l];
+            std::fill(segBins.begin(), segBins.end(), 0.0);
             {  // the phase-sampled direction
               const double p = glm::dot(v, w);
               const double h = std::sqrt(std::max(d2 - p * p, 1e-18));
-              const double seg = segment(p, h, std::atan2(-p, h));
               const double pG = p > 0.0 ? 1.0 / (kPi * kPi * (h / D)) : 0.0;
-              if (seg > 0.0) val += fP * seg / (pdfP + pG);
+              const double mis = fP / (pdfP + pG);
+              if (nK == 0) {
+                const double seg = segment(p, h, std::atan2(-p, h));
+                if (seg > 0.0) val += mis * seg;
+              } else {
+                // n: from the lamp to the ray's foot point x + p ω.
+                const Vec3 foot = (x + p * w - lamps[l]) / h;
+                tmpBins.assign(nK, 0.0);
+                val += mis * segment.binned(p, h, std::atan2(-p, h), glm::dot(foot, e), glm::dot(w, e), cosEdges, tmpBins.data());
+                for (std::size_t k = 0; k < nK; ++k) segBins[k] += mis * tmpBins[k];
+              }
             }
             {  // the guided direction: only its angles matter. The segment's lamp integral depends
                // on (D, ψ): p = D cos ψ, h = D sin ψ, θ0 = ψ − π/2; the phase function on the angle
@@ -214,11 +299,37 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
               const double fG = evalPhase(phase, cosG);
               const double pdfG =
                   tabulated ? tracer->phaseSamplingPdf(cosG, std::sqrt(std::max(0.0, 1.0 - cosG * cosG))) : fG;
-              const double seg = segment(D * cpsi, D * spsi, psi - kHalfPi);
-              if (seg > 0.0) val += fG * seg / (pdfG + 1.0 / (kPi * kPi * spsi));
+              const double mis = fG / (pdfG + 1.0 / (kPi * kPi * spsi));
+              if (nK == 0) {
+                const double seg = segment(D * cpsi, D * spsi, psi - kHalfPi);
+                if (seg > 0.0) val += mis * seg;
+              } else {
+                // ω_G = cos ψ u + sin ψ v, v ⊥ u at azimuth φ from the projection of ω_in; then
+                // n = −sin ψ u + cos ψ v. With ue = u·e and v·e = |e⊥| cos(φ − φ_e), φ_e the
+                // azimuth of e's projection from ω_in's about u.
+                const Vec3 u = v / D;
+                const double ue = glm::dot(u, e);
+                const Vec3 ePerp = e - ue * u, inPerp = wIn - c * u;
+                const double ePerpLen = glm::length(ePerp), inPerpLen = glm::length(inPerp);
+                double ve = 0.0;
+                if (ePerpLen > 1e-12) {
+                  if (inPerpLen > 1e-12) {
+                    const double cosPhiE = glm::dot(inPerp, ePerp) / (inPerpLen * ePerpLen);
+                    const double sinPhiE = glm::dot(u, glm::cross(inPerp, ePerp)) / (inPerpLen * ePerpLen);
+                    ve = ePerpLen * (std::cos(phi) * cosPhiE + std::sin(phi) * sinPhiE);
+                  } else {
+                    ve = ePerpLen * std::cos(phi);  // ω_in along u: any azimuth reference will do
+                  }
+                }
+                const double ne = -spsi * ue + cpsi * ve, we = cpsi * ue + spsi * ve;
+                tmpBins.assign(nK, 0.0);
+                val += mis * segment.binned(D * cpsi, D * spsi, psi - kHalfPi, ne, we, cosEdges, tmpBins.data());
+                for (std::size_t k = 0; k < nK; ++k) segBins[k] += mis * tmpBins[k];
+              }
             }
             if (!(val > 0.0)) continue;
             for (std::size_t a = 0; a < nA; ++a) acc[a * nL + l] += wA[a] * val;
+            for (std::size_t k = 0; k < nK; ++k) binAcc[l * nK + k] += wA[nA - 1] * segBins[k];
           }
           // Russian roulette on the importance 1/(1 + ρ), ρ the vertex's distance beyond the
           // farthest lamp (a weight window: below half of the target weight 1 + ρ a path survives
@@ -264,6 +375,18 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
     t.stderr_[k] = std::sqrt(var / N);
   }
   t.meanEvents_ = static_cast<double>(allEvents) / N;
+  // Emission fractions per (T, θ) node at the largest albedo: each bin's share of the node's light.
+  if (nK > 0) {
+    t.fractions_.assign(nL * nK, 0.0);
+    for (std::uint64_t b = 0; b < batches; ++b)
+      for (std::size_t k = 0; k < nL * nK; ++k) t.fractions_[k] += binSums[b * nL * nK + k];
+    for (std::size_t l = 0; l < nL; ++l) {
+      double sum = 0.0;
+      for (std::size_t k = 0; k < nK; ++k) sum += t.fractions_[l * nK + k];
+      for (std::size_t k = 0; k < nK; ++k)
+        t.fractions_[l * nK + k] = sum > 0.0 ? t.fractions_[l * nK + k] / sum : 1.0 / static_cast<double>(nK);
+    }
+  }
   for (double v : t.t_) t.logT_.push_back(std::log(v));
   for (double v : t.theta_) t.logTheta_.push_back(std::log(v));
   t.buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -286,6 +409,24 @@ double MultipleScatteringTable::valueAtAlbedo(std::size_t a, double T, double th
   }
   if (T < t_.front()) v *= (T / t_.front()) * (T / t_.front());
   return std::max(v, 0.0);
+}
+
+void MultipleScatteringTable::emissionShares(double opticalDistance, double theta, double* out) const noexcept {
+  if (fractions_.empty()) return;
+  const std::size_t nK = edges_.size() - 1;
+  const double lt = std::log(std::max(opticalDistance, t_.front())), lth = std::log(std::max(theta, theta_.front()));
+  const auto [i, fi] = locate(logT_, lt);
+  const auto [j, fj] = locate(logTheta_, lth);
+  const std::size_t i1 = std::min(i + 1, t_.size() - 1), j1 = std::min(j + 1, theta_.size() - 1);
+  const std::size_t nTh = theta_.size();
+  double sum = 0.0;
+  for (std::size_t k = 0; k < nK; ++k) {
+    const double v = (1 - fi) * ((1 - fj) * fractions_[(i * nTh + j) * nK + k] + fj * fractions_[(i * nTh + j1) * nK + k]) +
+                     fi * ((1 - fj) * fractions_[(i1 * nTh + j) * nK + k] + fj * fractions_[(i1 * nTh + j1) * nK + k]);
+    out[k] = v;
+    sum += v;
+  }
+  for (std::size_t k = 0; k < nK; ++k) out[k] = sum > 0.0 ? out[k] / sum : 1.0 / static_cast<double>(nK);
 }
 
 double MultipleScatteringTable::value(double opticalDistance, double theta, double albedo) const noexcept {
@@ -326,9 +467,19 @@ Status MultipleScatteringTable::save(const std::filesystem::path& path) const {
   list("optical_distances", t_, 1.0);
   list("angles_deg", theta_, 180.0 / kPi);
   list("albedos", albedo_, 1.0);
+  list("emission_edges_deg", edges_, 180.0 / kPi);
   // 8 significant digits: the nodes' standard errors are ≥ 1e-4 of their values.
   f.precision(8);
   for (std::size_t k = 0; k < mean_.size(); ++k) f << mean_[k] << ' ' << stderr_[k] << "\n";
+  if (!fractions_.empty()) {
+    const std::size_t nK = edges_.size() - 1;
+    f << "emission_shares\n";
+    f.precision(6);
+    for (std::size_t l = 0; l < fractions_.size() / nK; ++l) {
+      for (std::size_t k = 0; k < nK; ++k) f << (k ? " " : "") << fractions_[l * nK + k];
+      f << "\n";
+    }
+  }
   if (!f) return Error{"error writing " + path.string()};
   return Ok{};
 }
@@ -385,9 +536,9 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
   if (!next(ss, "paths") || !(ss >> t.paths_ >> k1 >> t.seed_ >> k2 >> t.maxOrder_ >> k3 >> t.meanEvents_) ||
       k1 != "seed" || k2 != "max_order" || k3 != "mean_events")
     return fail("expected 'paths <N> seed <S> max_order <M> mean_events <E>'");
-  auto list = [&](const char* key, std::vector<double>& v, double scale) -> Status {
+  auto list = [&](const char* key, std::vector<double>& v, double scale, bool mayBeEmpty = false) -> Status {
     std::size_t n = 0;
-    if (!next(ss, key) || !(ss >> n) || n == 0 || n > 100000)
+    if (!next(ss, key) || !(ss >> n) || (n == 0 && !mayBeEmpty) || n > 100000)
       return fail(std::string("expected '") + key + " <count> <values…>'");
     v.resize(n);
     for (auto& x : v) {
@@ -399,6 +550,14 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
   if (Status s = list("optical_distances", t.t_, 1.0); !s) return s.error();
   if (Status s = list("angles_deg", t.theta_, kPi / 180.0); !s) return s.error();
   if (Status s = list("albedos", t.albedo_, 1.0); !s) return s.error();
+  if (Status s = list("emission_edges_deg", t.edges_, kPi / 180.0, true); !s) return s.error();
+  if (!t.edges_.empty()) {
+    bool okEdges = t.edges_.size() >= 2 && t.edges_.size() <= 17 && t.edges_.front() == 0.0 &&
+                   std::abs(t.edges_.back() - kPi) < 1e-9;
+    for (std::size_t k = 1; k < t.edges_.size(); ++k) okEdges = okEdges && t.edges_[k] > t.edges_[k - 1];
+    if (!okEdges) return fail("emission_edges_deg: expected 2 to 17 edges ascending from 0 to 180");
+    t.edges_.back() = kPi;
+  }
   // Rounding of the degree values may put 180° a hair past π.
   t.theta_.back() = std::min(t.theta_.back(), kPi);
   if (Status s = checkNodes(t.t_, "optical distance", 0.0, kReach, true); !s) return fail(s.error().message);
@@ -416,6 +575,23 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
     std::istringstream ls(line);
     if (!(ls >> t.mean_[k] >> t.stderr_[k]) || !std::isfinite(t.mean_[k]) || !(t.stderr_[k] >= 0.0) || t.mean_[k] < 0.0)
       return fail("expected '<mean ≥ 0> <standard error ≥ 0>'");
+  }
+  if (!t.edges_.empty()) {
+    const std::size_t nK = t.edges_.size() - 1, nL = t.t_.size() * t.theta_.size();
+    if (!std::getline(f, line) || (++lineNo, line != "emission_shares"))
+      return fail("expected 'emission_shares' (the table has emission bins)");
+    t.fractions_.resize(nL * nK);
+    for (std::size_t l = 0; l < nL; ++l) {
+      if (!std::getline(f, line)) {
+        ++lineNo;
+        return fail("expected " + std::to_string(nL) + " emission share lines, found " + std::to_string(l));
+      }
+      ++lineNo;
+      std::istringstream ls(line);
+      for (std::size_t k = 0; k < nK; ++k)
+        if (!(ls >> t.fractions_[l * nK + k]) || !(t.fractions_[l * nK + k] >= 0.0 && t.fractions_[l * nK + k] <= 1.0 + 1e-9))
+          return fail("expected " + std::to_string(nK) + " emission shares in [0, 1]");
+    }
   }
   for (double v : t.t_) t.logT_.push_back(std::log(v));
   for (double v : t.theta_) t.logTheta_.push_back(std::log(v));
@@ -436,6 +612,13 @@ Result<MultipleScatteringTable> MultipleScatteringTable::blend(const MultipleSca
   for (std::size_t k = 0; k < t.mean_.size(); ++k) {
     t.mean_[k] = (1.0 - w) * a.mean_[k] + w * b.mean_[k];
     t.stderr_[k] = std::hypot((1.0 - w) * a.stderr_[k], w * b.stderr_[k]);
+  }
+  if (a.fractions_.size() == b.fractions_.size() && a.edges_ == b.edges_) {
+    for (std::size_t k = 0; k < t.fractions_.size(); ++k)
+      t.fractions_[k] = (1.0 - w) * a.fractions_[k] + w * b.fractions_[k];
+  } else {
+    t.fractions_.clear();  // one of them has no bins: the blend has none
+    t.edges_.clear();
   }
   t.paths_ = std::min(a.paths_, b.paths_);
   t.meanEvents_ = (1.0 - w) * a.meanEvents_ + w * b.meanEvents_;

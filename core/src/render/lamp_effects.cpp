@@ -151,6 +151,33 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
   return sum / (kBands * kAzimuths);
 }
 
+void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out) {
+  const Vec3 d = eye - lamp.position_m;
+  const double len = glm::length(d);
+  for (std::size_t k = 0; k < bins; ++k) out[k] = 0.0;
+  if (!(len > 0.0)) return;
+  const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);
+  const Vec3 axis = lampFromWorld * (d / len);  // towards the eye, lamp frame
+  const Vec3 helper = std::abs(axis.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
+  const Vec3 u = glm::normalize(glm::cross(axis, helper)), v = glm::cross(axis, u);
+  // Equal solid angles within each annulus: 4 bands uniform in cos η × 24 azimuths (staggered),
+  // one sample at each cell's middle.
+  constexpr int kBands = 4, kAzimuths = 24;
+  for (std::size_t k = 0; k < bins; ++k) {
+    const double c0 = std::cos(edges[k]), c1 = std::cos(edges[k + 1]);
+    double sum = 0.0;
+    for (int b = 0; b < kBands; ++b) {
+      const double c = c0 + (static_cast<double>(b) + 0.5) / kBands * (c1 - c0);
+      const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+      for (int a = 0; a < kAzimuths; ++a) {
+        const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
+        sum += lamp.profile->intensity(c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v));
+      }
+    }
+    out[k] = sum / (kBands * kAzimuths);
+  }
+}
+
 struct LampEffects::Tables {
   std::shared_ptr<const kernels::IsoTable> iso;  // single scattering of the glow's isotropic source
   // The glow's multiple-scattering table for the frame's phase (GlowModel::Table; nullptr: the APSF).
@@ -177,7 +204,16 @@ struct LampEffects::Tables {
     double scale = 0.0, single_flux = 0.0, multiple_flux = 0.0;
     int terms = 0;
     std::vector<double> glow;  // kNodes
+    // Measured lamps with the tables' emission bins: per table angle node j the shares of each
+    // bin (j × bins + k), and per glow node i the table node below it and the weight of the one
+    // above (log θ).
+    std::vector<double> shares;
+    std::vector<int> node;
+    std::vector<double> nodeWeight;
+    bool measured = false;
   };
+  // Scratch of the per-frame emission-bin means (steady frames allocate nothing).
+  std::vector<double> annulus, effective;
   std::vector<CurveCache> curves;
   // The fast path's buffers of one layer (grown only: steady frames allocate nothing).
   struct Layer {
@@ -501,6 +537,27 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         cc.phase = phaseId;
         cc.fromTable = fromTable;
         cc.ok = static_cast<bool>(curve);
+        cc.measured = false;
+        if (curve && fromTable && t.ms->hasEmissionBins() &&
+            !std::holds_alternative<IsotropicProfile>(lamp.profile->model())) {
+          // The emission shares at the table's angle nodes for this T, and where each glow node
+          // falls among those nodes (multiple_scattering.hpp, emissionShares).
+          const auto& angles = t.ms->angles();
+          const std::size_t nK = t.ms->emissionEdges().size() - 1;
+          cc.shares.resize(angles.size() * nK);
+          for (std::size_t j = 0; j < angles.size(); ++j)
+            t.ms->emissionShares(rep.optical_distance, angles[j], cc.shares.data() + j * nK);
+          cc.node.resize(static_cast<std::size_t>(kNodes));
+          cc.nodeWeight.resize(static_cast<std::size_t>(kNodes));
+          for (std::size_t i = 0; i < static_cast<std::size_t>(kNodes); ++i) {
+            const double th = std::max(curve->theta[i], angles.front());
+            std::size_t j = 0;
+            while (j + 2 < angles.size() && th > angles[j + 1]) ++j;
+            cc.node[i] = static_cast<int>(j);
+            cc.nodeWeight[i] = std::clamp(std::log(th / angles[j]) / std::log(angles[j + 1] / angles[j]), 0.0, 1.0);
+          }
+          cc.measured = true;
+        }
         if (curve) {
           cc.glow = curve->glow;
           cc.terms = curve->terms;
@@ -514,7 +571,26 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         rep.glow_scale = cc.scale;
         const double total = cc.single_flux + cc.multiple_flux;
         rep.glow_share = total > 0.0 ? cc.multiple_flux / total : 0.0;
-        const double source = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
+        // The source: isotropic lamps their intensity; measured lamps with the tables' emission
+        // bins the mean intensity of each bin's annulus about the direction to the eye, weighted
+        // per angle by the bins' shares (I_eff(θ)); otherwise the cone stand-in.
+        const bool measured = cc.measured;
+        double source = 0.0;
+        if (measured) {
+          const auto& edges = t.ms->emissionEdges();
+          const std::size_t nK = edges.size() - 1, nA = t.ms->angles().size();
+          t.annulus.resize(nK);
+          t.effective.resize(nA);
+          glowAnnulusMeans(lamp, cam.position_m, edges.data(), nK, t.annulus.data());
+          for (std::size_t j = 0; j < nA; ++j) {
+            double e = 0.0;
+            for (std::size_t k = 0; k < nK; ++k) e += cc.shares[j * nK + k] * t.annulus[k];
+            t.effective[j] = e;
+          }
+          source = t.effective.front();
+        } else {
+          source = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
+        }
         rep.glow_source_cd = luminous * source;
         rep.glow_from_table = fromTable;
         const double fade = fromTable ? 1.0
@@ -523,7 +599,13 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
                                                    0.0, 1.0);
         float* table = t.glowTables.data() + static_cast<std::size_t>(kNodes) * li;
         for (int i = 0; i < kNodes; ++i) {
-          const double g = fade * source * cc.glow[static_cast<std::size_t>(i)];
+          const auto ui = static_cast<std::size_t>(i);
+          double src = source;
+          if (measured) {
+            const auto j = static_cast<std::size_t>(cc.node[ui]);
+            src = (1.0 - cc.nodeWeight[ui]) * t.effective[j] + cc.nodeWeight[ui] * t.effective[j + 1];
+          }
+          const double g = fade * src * cc.glow[ui];
           table[i] = static_cast<float>(g);
           rep.glow_peak_cd_m2 = std::max(rep.glow_peak_cd_m2, luminous * g);
         }

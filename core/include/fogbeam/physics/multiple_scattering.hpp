@@ -52,6 +52,12 @@ struct MultipleScatteringOptions {
   std::vector<double> angles_rad;
   /// Ω nodes, ascending in (0, 1] (default: 0.7, 0.8, 0.85, 0.9, 0.94, 0.97, 0.99, 1).
   std::vector<double> albedos;
+  /// Emission bins: edges of the angle η at the lamp between the direction a node's light left it
+  /// and the direction to the eye, degrees, ascending from 0 to 180 (default 0, 3, 8, 15, 30, 60,
+  /// 100, 140, 180). Each node then also holds the share of its light per bin (at the largest
+  /// albedo node), which makes the table usable for measured lamps (effectiveIntensity). Empty:
+  /// isotropic lamps only.
+  std::vector<double> emission_edges_deg;
   std::uint64_t paths = 80000;
   std::uint64_t seed = 1;
   /// Largest scattering order counted (as PathTracerOptions::max_order).
@@ -87,6 +93,20 @@ class MultipleScatteringTable {
   /// lowest order, double scattering, grows as T² from a lamp at the eye); above the last node,
   /// Ω outside the nodes: clamped to the nearest node. θ in radians.
   [[nodiscard]] double value(double opticalDistance, double theta, double albedo) const noexcept;
+  /// Whether the table holds emission fractions (MultipleScatteringOptions::emission_edges_deg).
+  [[nodiscard]] bool hasEmissionBins() const noexcept { return !fractions_.empty(); }
+  /// Bin edges in radians (empty without bins).
+  [[nodiscard]] const std::vector<double>& emissionEdges() const noexcept { return edges_; }
+  /// The shares of the light of orders ≥ 2 reaching the eye at (T, θ) that left the lamp in each
+  /// emission bin (sum 1; bilinear in log T, log θ between nodes, clamped at the ends), written to
+  /// out[0 … bins). For a measured lamp of intensity I(u), the light is then
+  ///     L_ms = K_t² f(T, θ, Ω) Σ_k share_k Ī_k,
+  /// Ī_k the mean of I over the annulus of bin k about the lamp's direction to the eye: exact for
+  /// the mean over every ring of pixels at θ about the lamp's image (the azimuthal mean over the
+  /// ring sees only the azimuthal mean of I), a ring-symmetric stand-in pixel by pixel. The shares
+  /// are those of the largest albedo node (for Ω < 1 the low orders, emitted closer to the eye's
+  /// direction, weigh a little more). No-op without bins.
+  void emissionShares(double opticalDistance, double theta, double* out) const noexcept;
   /// L_ms in cd/m² for a lamp of `intensity_cd` at `distance_m` in fog of extinction `kt` (1/m).
   [[nodiscard]] double radiance(double intensity_cd, double kt, double distance_m, double theta,
                                 double albedo) const noexcept {
@@ -117,6 +137,8 @@ class MultipleScatteringTable {
   std::vector<double> t_, theta_, albedo_;
   std::vector<double> mean_, stderr_;
   std::vector<double> logT_, logTheta_;
+  std::vector<double> edges_;      // emission bin edges, radians
+  std::vector<double> fractions_;  // (T, θ, bin) shares at the largest albedo
   std::uint64_t paths_ = 0;
   std::uint64_t seed_ = 0;
   int maxOrder_ = 0;

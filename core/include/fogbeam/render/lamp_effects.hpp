@@ -121,6 +121,9 @@ struct GlowCurve {
 /// (orders ≥ 2, albedo included; no clamp, no energy match: scale = 1, apsf empty, terms 0).
 [[nodiscard]] Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table,
                                                    const Medium& fog, double distance_m, int nodes = 512);
+/// Mean intensity of `lamp` (cd) over each annulus η ∈ [edges[k], edges[k+1]] (radians) about the
+/// direction from the lamp to `eye`, k < bins (the multiple-scattering tables' emission bins).
+void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out);
 /// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
 /// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
 [[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);
