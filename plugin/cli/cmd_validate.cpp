@@ -188,6 +188,15 @@ bool validatePathTracer(int samples, const std::string& csvPath) {
   };
   cases[3].albedo = 0.9;
   if (auto fm = makeFogMie(10.0)) cases.push_back({"fog-mie 10 um, K_t R = 3", *fm, 3.0});
+  // A road: Lambertian, ρ = 0.1, 1.2 m under the eye and the lamp (what the tables, made for
+  // infinite fog, leave out: the ground absorbs part of the diffuse light and hides what lies
+  // beyond it).
+  {
+    RingComparisonCase road{"HG 0.85, K_t R = 3, road 1.2 m below (rho 0.1)", HenyeyGreensteinPhase{0.85}, 3.0};
+    road.ground_below_m = 1.2;
+    road.ground_reflectance = 0.1;
+    cases.push_back(road);
+  }
   // The shipped low beam (its built-in model) seen head-on, from the side and from behind: the
   // glow's isotropic stand-in for a measured lamp (lamp_effects.hpp), not a tabulated result.
   const auto lowBeam = makeProfile(lamps::makeLowBeam());

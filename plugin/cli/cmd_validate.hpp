@@ -17,6 +17,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -87,6 +88,11 @@ struct RingComparisonCase {
   /// is head-on, (1, 0, 0) from behind, (0, 1, 0) from the side).
   std::shared_ptr<const Profile> profile;
   Vec3 lamp_axis{-1.0, 0.0, 0.0};
+  /// A Lambertian ground `ground_below_m` under the eye (and the lamp) of reflectance
+  /// `ground_reflectance`; 0: none. Rays below the horizon end on it (fogbeam's airlight and
+  /// glow up to it, the path tracer's paths reflect off it).
+  double ground_below_m = 0.0;
+  double ground_reflectance = 0.1;
 };
 
 struct RingFigures {
@@ -149,7 +155,15 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   SurfaceBuffers surface;
   surface.resize(pixels, pixels);
   std::fill(surface.rgb.begin(), surface.rgb.end(), 0.0f);
-  std::fill(surface.distance.begin(), surface.distance.end(), std::numeric_limits<float>::infinity());
+  // Where each pixel centre's ray ends: the ground below the horizon when there is one, else the sky.
+  auto endOf = [&](const Vec3& w) {
+    if (c.ground_below_m > 0.0 && w.z < 0.0) return c.ground_below_m / -w.z;
+    return std::numeric_limits<double>::infinity();
+  };
+  for (int j = 0; j < pixels; ++j)
+    for (int i = 0; i < pixels; ++i)
+      surface.distance[static_cast<std::size_t>(j * pixels + i)] =
+          static_cast<float>(endOf(scene.camera.rayDirection(i + 0.5, j + 0.5)));
 
   // Pixels per region (rings, then the frame), by the angle of the pixel centre's ray.
   const auto& ringsDeg = comparisonRingsDeg();
@@ -195,9 +209,8 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
       const int i = static_cast<int>(k % static_cast<std::uint32_t>(pixels));
       const int j = static_cast<int>(k / static_cast<std::uint32_t>(pixels));
       float rgb[3];
-      air->evaluateRay(Ray{scene.camera.position_m, scene.camera.rayDirection(i + 0.5, j + 0.5),
-                           std::numeric_limits<double>::infinity()},
-                       rgb);
+      const Vec3 w = scene.camera.rayDirection(i + 0.5, j + 0.5);
+      air->evaluateRay(Ray{scene.camera.position_m, w, endOf(w)}, rgb);
       s += (static_cast<double>(rgb[0]) + static_cast<double>(rgb[1]) + static_cast<double>(rgb[2])) / 3.0;
       const std::size_t p = 3 * static_cast<std::size_t>(k);
       g += (static_cast<double>(glow[p]) + static_cast<double>(glow[p + 1]) + static_cast<double>(glow[p + 2])) / 3.0;
@@ -209,7 +222,9 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
 
   // The path tracer: one stream per region, pixels drawn uniformly among its members.
   const auto t1 = Clock::now();
-  auto pt = PathTracer::build({lamp.lamp}, scene.fog);
+  std::optional<GroundPlane> ground;
+  if (c.ground_below_m > 0.0) ground = GroundPlane{-c.ground_below_m, c.ground_reflectance};
+  auto pt = PathTracer::build({lamp.lamp}, scene.fog, ground);
   if (!pt) return pt.error();
   const auto est = pt->estimate(nRings + 1, samples, seed, pool.get(),
                                 [&](std::uint64_t region, std::uint64_t, PathRng& rng) {
@@ -218,9 +233,8 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
     const std::uint32_t k = m[pick];
     const int i = static_cast<int>(k % static_cast<std::uint32_t>(pixels));
     const int j = static_cast<int>(k / static_cast<std::uint32_t>(pixels));
-    return pt->trace(Ray{scene.camera.position_m, scene.camera.rayDirection(i + 0.5, j + 0.5),
-                         std::numeric_limits<double>::infinity()},
-                     rng);
+    const Vec3 w = scene.camera.rayDirection(i + 0.5, j + 0.5);
+    return pt->trace(Ray{scene.camera.position_m, w, endOf(w)}, rng);
   });
   for (std::size_t r = 0; r <= nRings; ++r) {
     out.rings[r].pt_single = est[r].single;

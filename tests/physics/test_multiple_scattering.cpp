@@ -7,8 +7,11 @@
 #include <fogbeam/physics/path_tracer.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
+#include "test_scale.hpp"
+
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -19,6 +22,13 @@ namespace fogbeam {
 namespace {
 
 constexpr double kDeg = kPi / 180.0;
+
+// Monte Carlo paths: the full count in the plain build; under FOGBEAM_TEST_SCALE (the sanitizer
+// pass) a share of it, at least 2 000. The agreement bounds (in standard errors) hold at any
+// count; the checks that the errors are small enough for the bounds to bite run at full count.
+std::uint64_t paths(std::uint64_t full) {
+  return std::max<std::uint64_t>(2000, static_cast<std::uint64_t>(static_cast<double>(full) * test::scale()));
+}
 
 // The path tracer's orders ≥ 2 for an isotropic lamp of `cd` at distance R (m) and angle θ from a
 // sky ray from the origin along +z, in fog of K_t, albedo Ω, phase p.
@@ -49,7 +59,7 @@ TEST(MultipleScattering, TableNodesAgreeWithThePathTracer) {
   MultipleScatteringOptions o;
   o.optical_distances = {0.5, 2.0, 5.0};
   o.albedos = {0.9, 1.0};
-  o.paths = 6000;
+  o.paths = paths(6000);
   const Phase phase = HenyeyGreensteinPhase{0.85};
   o.angles_rad = {6.0 * kDeg, 16.0 * kDeg};
   auto t = MultipleScatteringTable::build(phase, o, &pool);
@@ -66,14 +76,16 @@ TEST(MultipleScattering, TableNodesAgreeWithThePathTracer) {
     const double T = o.optical_distances[n.i], th = o.angles_rad[n.j], om = o.albedos[n.a];
     const double table = cd * kt * kt * t->nodeMean(n.a, n.i, n.j);
     const double tableSe = cd * kt * kt * t->nodeStdError(n.a, n.i, n.j);
-    const auto pt = pathTracerMultiple(phase, kt, om, T / kt, th, cd, 30000, static_cast<std::uint64_t>(40 + checked), pool);
+    const auto pt = pathTracerMultiple(phase, kt, om, T / kt, th, cd, paths(30000), static_cast<std::uint64_t>(40 + checked), pool);
     const double se = std::hypot(tableSe, pt.multiple.std_error);
     std::printf("  T = %.1f, theta = %5.1f deg, albedo %.2f: table %.5g +- %.2g, path tracer %.5g +- %.2g (%.1f sigma)\n", T,
                 th / kDeg, om, table, tableSe, pt.multiple.mean, pt.multiple.std_error,
                 std::abs(table - pt.multiple.mean) / se);
     EXPECT_LT(std::abs(table - pt.multiple.mean), 3.5 * se + 0.02 * pt.multiple.mean) << T << " " << th;
     // So that the bound has teeth: both within 10 %.
-    EXPECT_LT(se, 0.1 * pt.multiple.mean) << T << " " << th;
+    if (!test::reduced()) {
+      EXPECT_LT(se, 0.1 * pt.multiple.mean) << T << " " << th;
+    }
     ++checked;
   }
   // The albedo nodes come from the same paths weighted Ω^n (n ≥ 2): Ω = 0.9 keeps between 0.9^{max
@@ -108,7 +120,7 @@ TEST(MultipleScattering, ShippedTablesBetweenTheirNodesAgreeWithThePathTracer) {
     ASSERT_NE(t, nullptr) << "no shipped table for g = " << c.g;
     const double th = c.thetaDeg * kDeg;
     const double table = t->radiance(cd, kt, c.T / kt, th, 1.0);
-    const auto pt = pathTracerMultiple(phase, kt, 1.0, c.T / kt, th, cd, 30000, static_cast<std::uint64_t>(seed++), pool);
+    const auto pt = pathTracerMultiple(phase, kt, 1.0, c.T / kt, th, cd, paths(30000), static_cast<std::uint64_t>(seed++), pool);
     std::printf("  g = %.3f, T = %.1f, theta = %5.1f deg: table %.5g, path tracer %.5g +- %.2g (ratio %.3f)\n", c.g, c.T,
                 c.thetaDeg, table, pt.multiple.mean, pt.multiple.std_error, table / pt.multiple.mean);
     EXPECT_LT(std::abs(table - pt.multiple.mean), 3.0 * pt.multiple.std_error + 0.08 * pt.multiple.mean)
@@ -133,7 +145,7 @@ TEST(MultipleScattering, EmissionBinsGiveMeasuredLampsAgainstThePathTracer) {
   o.angles_rad = {2.0 * kDeg, 10.0 * kDeg};
   o.albedos = {1.0};
   o.emission_edges_deg = MultipleScatteringOptions::defaults().emission_edges_deg;
-  o.paths = 6000;
+  o.paths = paths(6000);
   const Phase phase = HenyeyGreensteinPhase{0.85};
   auto t = MultipleScatteringTable::build(phase, o, &pool);
   ASSERT_TRUE(t.has_value()) << t.error().message;
@@ -188,7 +200,7 @@ TEST(MultipleScattering, EmissionBinsGiveMeasuredLampsAgainstThePathTracer) {
       auto pt = PathTracer::build({lamp}, m);
       ASSERT_TRUE(pt.has_value());
       const Ray ray{Vec3(0.0), Vec3(0.0, 0.0, 1.0), std::numeric_limits<double>::infinity()};
-      const auto est = pt->radiance(std::span<const Ray>(&ray, 1), 30000, static_cast<std::uint64_t>(seed++), &pool)[0];
+      const auto est = pt->radiance(std::span<const Ray>(&ray, 1), paths(30000), static_cast<std::uint64_t>(seed++), &pool)[0];
       // The table's own σ at this node, scaled as the prediction.
       const double tableSe = kt * kt * t->nodeStdError(0, 0, j) * predicted;
       const double se = std::hypot(tableSe, est.multiple.std_error);
@@ -196,7 +208,9 @@ TEST(MultipleScattering, EmissionBinsGiveMeasuredLampsAgainstThePathTracer) {
                   table, tableSe, est.multiple.mean, est.multiple.std_error, table / est.multiple.mean);
       EXPECT_GT(est.multiple.mean, 0.0);
       EXPECT_LT(std::abs(table - est.multiple.mean), 3.5 * se + 0.08 * est.multiple.mean) << c.name << " " << th;
-      EXPECT_LT(se, 0.12 * est.multiple.mean) << c.name << " " << th;
+      if (!test::reduced()) {
+        EXPECT_LT(se, 0.12 * est.multiple.mean) << c.name << " " << th;
+      }
     }
   }
 }

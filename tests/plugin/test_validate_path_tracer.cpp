@@ -6,6 +6,7 @@
 // accurate method's own error bound is 0.5 % at p95). Then the glow model: single + glow within
 // issue 18's 15 % of all orders.
 #include "../../plugin/cli/cmd_validate.hpp"
+#include "test_scale.hpp"
 
 #include <gtest/gtest.h>
 
@@ -70,14 +71,16 @@ TEST(ValidatePathTracer, SingleAndGlowAreWithinFifteenPercentOfAllOrders) {
   // (K_t R = 8 needs ~3× the paths for σ below 10 %: `fogbeam validate --path-tracer` runs it.)
   for (const RingComparisonCase& c : {RingComparisonCase{"HG 0.85, K_t R = 4.5", HenyeyGreensteinPhase{0.85}, 4.5},
                                       RingComparisonCase{"HG 0.75, K_t R = 3", HenyeyGreensteinPhase{0.75}, 3.0}, grey}) {
-    auto res = compareRings(c, 6000, 11, pool, 151);
+    // Under FOGBEAM_TEST_SCALE (the sanitizer pass) a share of the paths; the bound on σ then
+    // does not apply (the 15 % + 3σ agreement does).
+    auto res = compareRings(c, test::scaled(6000, 2000), 11, pool, 151);
     ASSERT_TRUE(res.has_value()) << res.error().message;
     std::printf("  %s\n", c.name.c_str());
     for (const RingFigures& f : res->rings) {
       std::printf("    ring %4.1f-%4.1f: single %.4g + glow %.4g; path tracer all %.4g +- %.2g; ratio %.3f +- %.3f\n",
                   f.lo_deg, f.hi_deg, f.single, f.glow, f.pt_all.mean, f.pt_all.std_error, f.ratio(), f.ratioError());
       // The bound has teeth in the rings (the frame's paths spread over 0.5–24°: its σ is larger).
-      if (std::isfinite(f.hi_deg)) {
+      if (std::isfinite(f.hi_deg) && !test::reduced()) {
         EXPECT_LT(f.pt_all.std_error, 0.1 * f.pt_all.mean) << c.name << " " << f.lo_deg;
       }
       EXPECT_LT(std::abs(f.single + f.glow - f.pt_all.mean), 0.15 * f.pt_all.mean + 3.0 * f.pt_all.std_error)

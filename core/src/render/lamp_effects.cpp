@@ -68,23 +68,51 @@ double singleAt(const kernels::IsoTable& table, double kt, double R, double thet
 
 Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table, const Medium& fog,
                                      double distance_m, int nodes) {
-  const double kt = fog.extinction_per_m, R = distance_m;
+  const double kt = fog.extinction_per_m, R = distance_m, T = kt * R;
   if (nodes < 16) return Error{"glow: at least 16 nodes"};
   if (!(kt > 0.0 && R > 0.0)) return Error{"glow: extinction and distance must be > 0"};
   GlowCurve c;
   const auto n = static_cast<std::size_t>(nodes);
   c.theta.resize(n);
-  c.single.resize(n);
   c.glow.resize(n);
+  // Orders ≥ 2 of a 1 cd source (multiple_scattering.hpp): K_t² f(K_t R, θ, Ω), albedo included.
+  // f at the table's own angle nodes (its interpolation in T and Ω, once), then log-linear in θ
+  // between them for every curve node: the table's interpolation (log-multilinear), done in
+  // ~25 look-ups instead of one per node (a moving lamp recomputes its curve every frame).
+  const auto& angles = ms.angles();
+  thread_local std::vector<double> logF;
+  logF.resize(angles.size());
+  bool positive = true;
+  for (std::size_t j = 0; j < angles.size(); ++j) {
+    const double f = ms.value(T, angles[j], fog.albedo);
+    positive = positive && f > 0.0;
+    logF[j] = f > 0.0 ? std::log(f) : 0.0;
+  }
+  std::size_t j = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const double theta = glowNodeAngle(i, n);
     c.theta[i] = theta;
-    c.single[i] = singleAt(table, kt, R, theta);
-    // Orders ≥ 2 of a 1 cd source (multiple_scattering.hpp): K_t² f(K_t R, θ, Ω), albedo included.
-    c.glow[i] = ms.radiance(1.0, kt, R, theta, fog.albedo);
+    if (!positive) {
+      c.glow[i] = ms.radiance(1.0, kt, R, theta, fog.albedo);
+      continue;
+    }
+    const double th = std::max(theta, angles.front());
+    while (j + 2 < angles.size() && th > angles[j + 1]) ++j;
+    const double w = std::clamp(std::log(th / angles[j]) / std::log(angles[j + 1] / angles[j]), 0.0, 1.0);
+    c.glow[i] = kt * kt * std::exp((1.0 - w) * logF[j] + w * logF[j + 1]);
+  }
+  // The report's shares: the flux of the single-scattering part through the sphere of radius R
+  // on every 4th node (S₁ is smooth there but for its 1/θ peak, which the first interval's rule
+  // takes: fluxOver), the multiple part's on every node.
+  thread_local std::vector<double> th4, s4;
+  th4.clear();
+  s4.clear();
+  for (std::size_t i = 0; i < n; i += 4) {
+    th4.push_back(c.theta[i]);
+    s4.push_back(singleAt(table, kt, R, c.theta[i]));
   }
   c.scale = 1.0;
-  c.single_flux = fog.albedo * R * R * fluxOver(c.theta, c.single);
+  c.single_flux = fog.albedo * R * R * fluxOver(th4, s4);
   c.multiple_flux = R * R * fluxOver(c.theta, c.glow);
   return c;
 }

@@ -118,7 +118,8 @@ struct GlowCurve {
 [[nodiscard]] Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, double distance_m,
                                           int nodes = 512);
 /// The same nodes from a multiple-scattering table (GlowModel::Table): glow = K_t² f(K_t R, θ, Ω)
-/// (orders ≥ 2, albedo included; no clamp, no energy match: scale = 1, apsf empty, terms 0).
+/// (orders ≥ 2, albedo included; no clamp, no energy match: scale = 1, terms 0; `single` and
+/// `apsf` empty, single_flux from S₁ on every 4th node).
 [[nodiscard]] Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table,
                                                    const Medium& fog, double distance_m, int nodes = 512);
 /// Mean intensity of `lamp` (cd) over each annulus η ∈ [edges[k], edges[k+1]] (radians) about the
