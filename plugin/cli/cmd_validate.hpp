@@ -44,8 +44,9 @@ struct ValidateOptions {
   /// false with --no-additions: skip the checks of issue 7's additions (default: run them).
   bool additions = true;
   /// --path-tracer: fogbeam's single scattering and glow against the all-orders path tracer in
-  /// rings about a lamp in view (issue 18; docs/airlight.md, "Against the all-orders path
-  /// tracer"). Off by default: it takes about a minute.
+  /// rings about a lamp (isotropic in several fogs, albedo 0.9, a road, the low beam from three
+  /// sides; issue 18; docs/airlight.md, "Glow: multiple scattering around the lamps"). Off by
+  /// default: it takes a few minutes.
   bool path_tracer = false;
   /// --pt-samples: paths per ring (and for the whole frame) and case (default 20 000).
   int pt_samples = 20000;

@@ -82,8 +82,8 @@ void addValidateCommand(CLI::App& app, int& exitCode) {
       ->check(CLI::Range(1, 4096));
   sub->add_flag("--path-tracer", opts->path_tracer,
                 "also compare fogbeam's single scattering and glow with the all-orders path tracer in rings 0.5-16 deg "
-                "about a lamp in view (3 fogs; about a minute; exits 1 when the path tracer's single scattering "
-                "misses fogbeam's by more than 3 sigma + 1 %)");
+                "about a lamp in view (isotropic lamps in 6 fogs, a road, the low beam from 3 sides; a few minutes; exits 1 "
+                "when the path tracer's single scattering misses fogbeam's by more than 3 sigma + 1 %)");
   sub->add_option("--pt-samples", opts->pt_samples,
                   "--path-tracer: paths per ring and case (default 20000; the error falls as 1/sqrt)")
       ->check(CLI::Range(100, 100000000));
