@@ -95,6 +95,23 @@ double at(const std::vector<float>& layer, int i, int j) {
   return static_cast<double>(layer[k]) + static_cast<double>(layer[k + 1]) + static_cast<double>(layer[k + 2]);
 }
 
+// The street lamp's pixel seen from x = −40 (pinhole projection of its direction in the camera
+// frame, x forward; the eye as stateAt places it).
+std::pair<int, int> streetLampPixelFromMinus40(const Scene& world) {
+  const Vec3 eye{-40.0, 0.37, 1.2};
+  const Vec3 d = world.lamps.at(0).lamp.position_m - eye;
+  const double focal = 0.5 * kWidth / std::tan(radians(30.0));
+  return {static_cast<int>(0.5 * kWidth - focal * d.y / d.x), static_cast<int>(0.5 * kHeight - focal * d.z / d.x)};
+}
+
+// The frame from x = −40 with the same config but glow off.
+bool renderWithoutGlow(const ServiceConfig& cfg, const Scene& world, RenderedFrame& out) {
+  ServiceConfig off = cfg;
+  off.effects.glow.enabled = false;
+  auto r0 = ChannelRenderer::create(off, 0, world, nullptr);
+  return r0 && (*r0)->render(stateAt(-40.0, ipc::light::kLowBeam), ipc::Clock::now(), true, out);
+}
+
 const LampEffectsReport::Lamp* lampNamed(const LampEffectsReport& r, const std::string& name) {
   for (const auto& l : r.lamps)
     if (l.name == name) return &l;
@@ -157,11 +174,7 @@ TEST(ChannelRendererEffects, TableGlowPeaksAtTheLampAndFallsAwayFromIt) {
   EXPECT_EQ(lamp->apsf_terms, 0);
   EXPECT_GT(lamp->glow_peak_cd_m2, 0.0);
   ASSERT_EQ(f.layers.glow.size(), 3u * kWidth * kHeight);
-  const Vec3 eye{-40.0, 0.37, 1.2};
-  const Vec3 d = world.lamps.at(0).lamp.position_m - eye;
-  const double focal = 0.5 * kWidth / std::tan(radians(30.0));
-  const int li = static_cast<int>(0.5 * kWidth - focal * d.y / d.x);
-  const int lj = static_cast<int>(0.5 * kHeight - focal * d.z / d.x);
+  const auto [li, lj] = streetLampPixelFromMinus40(world);
   ASSERT_TRUE(li >= 0 && li < kWidth && lj >= 0 && lj < kHeight);
   const double atLamp = at(f.layers.glow, li, lj), left = at(f.layers.glow, li - 20, lj),
                right = at(f.layers.glow, li + 20, lj);
@@ -177,12 +190,8 @@ TEST(ChannelRendererEffects, TableGlowPeaksAtTheLampAndFallsAwayFromIt) {
   ASSERT_NE(nearLamp, nullptr);
   EXPECT_LT(nearLamp->optical_distance, 1.1);
   EXPECT_GT(sum(near.layers.glow), 0.0);
-  ServiceConfig off = cfg;
-  off.effects.glow.enabled = false;
-  auto r0 = ChannelRenderer::create(off, 0, world, nullptr);
-  ASSERT_TRUE(r0) << r0.error().message;
   RenderedFrame g;
-  ASSERT_TRUE((*r0)->render(stateAt(-40.0, ipc::light::kLowBeam), ipc::Clock::now(), true, g));
+  ASSERT_TRUE(renderWithoutGlow(cfg, world, g));
   for (std::size_t k = 0; k < g.layers.composite.size(); ++k) {
     const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]);
     ASSERT_NEAR(f.layers.composite[k], want, 1e-4 * std::max(want, 1e-3)) << k;
@@ -206,11 +215,7 @@ TEST(ChannelRendererEffects, ApsfGlowSurroundsAVisibleLampAndAddsToTheComposite)
   EXPECT_TRUE(f.layers.glare.empty());
   ASSERT_EQ(f.layers.glow.size(), 3u * kWidth * kHeight);
   // The lamp's pixel (pinhole projection of its direction in the camera frame, x forward).
-  const Vec3 eye{-40.0, 0.37, 1.2};
-  const Vec3 d = world.lamps.at(0).lamp.position_m - eye;
-  const double focal = 0.5 * kWidth / std::tan(radians(30.0));
-  const int li = static_cast<int>(0.5 * kWidth - focal * d.y / d.x);
-  const int lj = static_cast<int>(0.5 * kHeight - focal * d.z / d.x);
+  const auto [li, lj] = streetLampPixelFromMinus40(world);
   ASSERT_TRUE(li >= 0 && li < kWidth && lj >= 0 && lj < kHeight);
   // The glow layer is the multiple-scattering halo that single scattering (the airlight layer)
   // misses: nothing at the lamp's own image, where single scattering dominates, and a halo
@@ -235,12 +240,8 @@ TEST(ChannelRendererEffects, ApsfGlowSurroundsAVisibleLampAndAddsToTheComposite)
   EXPECT_LT(nearLamp->optical_distance, 1.1);
   EXPECT_EQ(sum(near.layers.glow), 0.0);
   // It is in the composite and in the overlay: both are the frame without glow plus the glow.
-  ServiceConfig off = cfg;
-  off.effects.glow.enabled = false;
-  auto r0 = ChannelRenderer::create(off, 0, world, nullptr);
-  ASSERT_TRUE(r0) << r0.error().message;
   RenderedFrame g;
-  ASSERT_TRUE((*r0)->render(stateAt(-40.0, ipc::light::kLowBeam), ipc::Clock::now(), true, g));
+  ASSERT_TRUE(renderWithoutGlow(cfg, world, g));
   double worst = 0.0;
   for (std::size_t k = 0; k < g.layers.composite.size(); ++k) {
     const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]);
