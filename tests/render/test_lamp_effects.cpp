@@ -189,6 +189,26 @@ TEST(LampEffectsLayers, GlowIsTheCurveAroundTheLampsImage) {
     const GlowCurve c = model == GlowModel::Table ? glowCurveFromTable(*ms, *iso, s.scene.fog, R).value()
                                                   : glowCurve(*iso, s.scene.fog, R).value();
     EXPECT_NEAR(rep.lamps[0].glow_scale, c.scale, 1e-12);
+    // The report's share of multiple scattering: from the curve's own fluxes (the tables' glow
+    // takes the single-scattered flux from a table in log T: within 1 % of it).
+    ASSERT_GT(c.single_flux, 0.0);
+    EXPECT_NEAR(rep.lamps[0].glow_share, c.multiple_flux / (c.single_flux + c.multiple_flux), 1e-2);
+    if (model == GlowModel::Table) {
+      // Between the log-T table's nodes and beyond its ends (computed there), albedo 0.9.
+      Scene other = s.scene;
+      other.fog.albedo = 0.9;
+      for (double T : {0.0004, 0.0123, 0.3, 1.07, 2.7, 9.1, 40.0, 80.0}) {
+        other.fog.extinction_per_m = T / R;
+        LampEffectsReport r2;
+        fx.evaluate(other, s.surface, glow, glare, r2);
+        const auto exact = glowCurveFromTable(*ms, *iso, other.fog, R).value();
+        ASSERT_EQ(r2.lamps.size(), 1u);
+        EXPECT_NEAR(exact.single_flux, 0.9 * singleScatteredFlux(*iso, T), 1e-9 * exact.single_flux);
+        EXPECT_NEAR(r2.lamps[0].glow_share, exact.multiple_flux / (exact.single_flux + exact.multiple_flux), 1e-2)
+            << "T = " << T;
+      }
+      fx.evaluate(s.scene, s.surface, glow, glare, rep);
+    }
     double peak = 0.0;
     for (float v : glow) peak = std::max(peak, static_cast<double>(v));
     ASSERT_GT(peak, 0.0);
@@ -421,7 +441,7 @@ FastVsExact fastAgainstExact(const Scene& scene, const SurfaceBuffers& surface, 
   fx.evaluate(scene, surface, glowX, glareX, rep);
   FastVsExact r{compareLayers(glowF, glowX, true), compareLayers(glareF, glareX, false)};
   int glowing = 0;
-  for (const auto& l : rep.lamps) glowing += l.apsf_terms > 0 ? 1 : 0;
+  for (const auto& l : rep.lamps) glowing += l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
   std::printf("%-28s %4dx%-4d %2zu lamps (%d glow): glow max err %.2e, sum ratio %.6f; "
               "glare max err %.2e, sum ratio %.6f\n",
               what, scene.camera.width, scene.camera.height, rep.lamps.size(), glowing, r.glow.worst,
@@ -535,7 +555,7 @@ TEST(LampEffectsFastPath, ALampCloseToTheEyeInDenseFog) {
 }
 
 TEST(LampEffectsFastPath, TheCriterionCatchesAPlainCoarseGrid) {
-  // The check has teeth: the exact layers sampled every 8 px and interpolated bilinearly
+  // The check has teeth: the exact layers sampled every kCell px (the fast path's grid) and interpolated bilinearly
   // everywhere (no per-pixel tiles) fail it near the lamps' images.
   const Scene s = benchLike(320, 180);
   const SurfaceBuffers surf = surfacesOf(s);
@@ -548,21 +568,22 @@ TEST(LampEffectsFastPath, TheCriterionCatchesAPlainCoarseGrid) {
   const int w = 320, h = 180;
   auto coarse = [&](const std::vector<float>& x) {
     std::vector<float> y(x);
-    for (int j = 0; j + 8 < h; ++j)
-      for (int i = 0; i + 8 < w; ++i) {
-        const int i0 = i / 8 * 8, j0 = j / 8 * 8;
-        const float u = static_cast<float>(i - i0) / 8, v = static_cast<float>(j - j0) / 8;
+    constexpr int K = lamp_fx::kCell;
+    for (int j = 0; j + K < h; ++j)
+      for (int i = 0; i + K < w; ++i) {
+        const int i0 = i / K * K, j0 = j / K * K;
+        const float u = static_cast<float>(i - i0) / K, v = static_cast<float>(j - j0) / K;
         for (int ch = 0; ch < 3; ++ch) {
           auto at = [&](int a, int b) { return x[3 * (static_cast<std::size_t>(b) * w + static_cast<std::size_t>(a)) + static_cast<std::size_t>(ch)]; };
           y[3 * (static_cast<std::size_t>(j) * w + static_cast<std::size_t>(i)) + static_cast<std::size_t>(ch)] =
-              (1 - v) * ((1 - u) * at(i0, j0) + u * at(i0 + 8, j0)) + v * ((1 - u) * at(i0, j0 + 8) + u * at(i0 + 8, j0 + 8));
+              (1 - v) * ((1 - u) * at(i0, j0) + u * at(i0 + K, j0)) + v * ((1 - u) * at(i0, j0 + K) + u * at(i0 + K, j0 + K));
         }
       }
     return y;
   };
   const double glareErr = compareLayers(coarse(glare), glare, false).worst;
   const double glowErr = compareLayers(coarse(glow), glow, true).worst;
-  std::printf("plain 8 px bilinear grid: glare max err %.3g, glow max err %.3g\n", glareErr, glowErr);
+  std::printf("plain %d px bilinear grid: glare max err %.3g, glow max err %.3g\n", lamp_fx::kCell, glareErr, glowErr);
   EXPECT_GT(glareErr, 0.01);
   EXPECT_GT(glowErr, 0.01);
 }

@@ -66,8 +66,22 @@ double singleAt(const kernels::IsoTable& table, double kt, double R, double thet
 
 }  // namespace
 
+double singleScatteredFlux(const kernels::IsoTable& table, double opticalDistance, int nodes) {
+  // On every 4th node of the glow curve's angles (S₁ is smooth there but for its 1/θ peak,
+  // which the first interval's rule takes: fluxOver), with K_t = 1 /m and R = T m.
+  thread_local std::vector<double> th4, s4;
+  th4.clear();
+  s4.clear();
+  const auto n = static_cast<std::size_t>(std::max(nodes, 16));
+  for (std::size_t i = 0; i < n; i += 4) {
+    th4.push_back(glowNodeAngle(i, n));
+    s4.push_back(singleAt(table, 1.0, opticalDistance, th4.back()));
+  }
+  return opticalDistance * opticalDistance * fluxOver(th4, s4);
+}
+
 Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table, const Medium& fog,
-                                     double distance_m, int nodes) {
+                                     double distance_m, int nodes, bool withSingleFlux) {
   const double kt = fog.extinction_per_m, R = distance_m, T = kt * R;
   if (nodes < 16) return Error{"glow: at least 16 nodes"};
   if (!(kt > 0.0 && R > 0.0)) return Error{"glow: extinction and distance must be > 0"};
@@ -102,17 +116,9 @@ Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const ke
     c.glow[i] = kt * kt * std::exp((1.0 - w) * logF[j] + w * logF[j + 1]);
   }
   // The report's shares: the flux of the single-scattering part through the sphere of radius R
-  // on every 4th node (S₁ is smooth there but for its 1/θ peak, which the first interval's rule
-  // takes: fluxOver), the multiple part's on every node.
-  thread_local std::vector<double> th4, s4;
-  th4.clear();
-  s4.clear();
-  for (std::size_t i = 0; i < n; i += 4) {
-    th4.push_back(c.theta[i]);
-    s4.push_back(singleAt(table, kt, R, c.theta[i]));
-  }
+  // (singleScatteredFlux), the multiple part's on every node.
   c.scale = 1.0;
-  c.single_flux = fog.albedo * R * R * fluxOver(th4, s4);
+  c.single_flux = withSingleFlux ? fog.albedo * singleScatteredFlux(table, T, nodes) : 0.0;
   c.multiple_flux = R * R * fluxOver(c.theta, c.glow);
   return c;
 }
@@ -240,6 +246,29 @@ struct LampEffects::Tables {
     std::vector<double> nodeWeight;
     bool measured = false;
   };
+  // The report's single-scattered flux (singleScatteredFlux) of the tables' glow, tabulated in
+  // log T for the IsoTable it was computed with: a moving lamp's curve would otherwise spend
+  // ~128 single-scattering look-ups a frame (most of its cost) on a report figure.
+  const kernels::IsoTable* fluxIso = nullptr;
+  std::vector<double> logFlux;  // log of the flux at T = 2^(kFluxLog2Min + i / kFluxPerOctave)
+  static constexpr double kFluxLog2Min = -10.0, kFluxLog2Max = 6.0, kFluxPerOctave = 4.0;
+  double singleFlux(double T) {
+    const double x = (std::log2(T) - kFluxLog2Min) * kFluxPerOctave;
+    if (!(x >= 0.0) || x > static_cast<double>(logFlux.size() - 1) || logFlux.empty())
+      return singleScatteredFlux(*iso, T, kNodes);  // outside the table: computed (rare)
+    const auto i = std::min(static_cast<std::size_t>(x), logFlux.size() - 2);
+    const double w = x - static_cast<double>(i);
+    return std::exp((1.0 - w) * logFlux[i] + w * logFlux[i + 1]);
+  }
+  void tabulateFlux() {
+    if (fluxIso == iso.get()) return;
+    fluxIso = iso.get();
+    const auto n = static_cast<std::size_t>((kFluxLog2Max - kFluxLog2Min) * kFluxPerOctave) + 1;
+    logFlux.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      logFlux[i] = std::log(std::max(
+          singleScatteredFlux(*iso, std::exp2(kFluxLog2Min + static_cast<double>(i) / kFluxPerOctave), kNodes), 1e-300));
+  }
   // Scratch of the per-frame emission-bin means (steady frames allocate nothing).
   std::vector<double> annulus, effective;
   std::vector<CurveCache> curves;
@@ -247,7 +276,10 @@ struct LampEffects::Tables {
   struct Layer {
     std::vector<lamp_fx::KernelLamp> lamps;
     std::vector<float> grid, hmid, vmid, centre;  // per lamp gw × gh: nodes, edge midpoints, cell centres
-    std::vector<float> combined;                  // 3 planes gw × gh
+    // Partial sums over lamps of colour × grid (lamp_fx::LayerRow::prefix): 3 planes per m.
+    std::vector<float> prefix;
+    bool prefixAll = false;
+    std::vector<std::size_t> order;               // lamps' indices, nearest first (glow)
     std::vector<float> floor;                     // per lamp: the check's absolute floor (table units)
     std::vector<std::uint8_t> exact;              // tiles × lamps
     std::vector<float> imageX, imageY;            // per lamp: its image point, pixels (centre coordinates)
@@ -259,7 +291,7 @@ struct LampEffects::Tables {
 namespace {
 
 // The fast path's accuracy control (docs/airlight.md, "Cost of glow and glare"). A tile (the
-// 8 × 8 pixels between four grid nodes) interpolates lamp i bilinearly unless
+// kCell × kCell pixels between four grid nodes) interpolates lamp i bilinearly unless
 //  * the lamp's image point lies within kNearCells cells of it (the glare's 1/θ³ and the
 //    tables' steep first nodes: no smoothness to rely on), or
 //  * the interpolation misses the lamp's table, evaluated exactly at the tile's centre and its
@@ -281,11 +313,11 @@ struct FastJob {
   const float* distance;  // nullptr: weights 1 (glare)
   float* out;
   int width, height;
-  float f, cx, cy, maxDistance;
+  float f, cx, cy;
 };
 
 // Pass 1, grid row r: each lamp's table at the nodes, edge midpoints and cell centres of row
-// r, and the nodes' colour-weighted sum (the combined grid).
+// r, and the nodes' colour-weighted partial sums over the lamps (LayerRow::prefix).
 void gridRow(const FastJob& J, std::size_t r) {
   using lamp_fx::kCell;
   auto& L = *J.layer;
@@ -300,13 +332,17 @@ void gridRow(const FastJob& J, std::size_t r) {
     lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f, kCell, y1, count, L.vmid.data() + o);
     lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y1, count, L.centre.data() + o);
   }
+  const std::size_t nl = L.lamps.size();
   for (int ch = 0; ch < 3; ++ch) {
-    float* dst = L.combined.data() + static_cast<std::size_t>(ch) * plane + r * gw;
-    std::fill(dst, dst + gw, 0.0f);
-    for (std::size_t l = 0; l < L.lamps.size(); ++l) {
+    // Running sums in the last slot, copied out to slot m − 1 after lamp m when all are kept.
+    float* last = L.prefix.data() + ((L.prefixAll ? nl - 1 : 0) * 3 + static_cast<std::size_t>(ch)) * plane + r * gw;
+    std::fill(last, last + gw, 0.0f);
+    for (std::size_t l = 0; l < nl; ++l) {
       const float col = L.lamps[l].color[ch];
       const float* g = L.grid.data() + l * plane + r * gw;
-      for (std::size_t c = 0; c < gw; ++c) dst[c] += col * g[c];
+      for (std::size_t c = 0; c < gw; ++c) last[c] += col * g[c];
+      if (L.prefixAll && l + 1 < nl)
+        std::copy(last, last + gw, L.prefix.data() + (l * 3 + static_cast<std::size_t>(ch)) * plane + r * gw);
     }
   }
 }
@@ -342,7 +378,8 @@ void tileRow(const FastJob& J, std::size_t r) {
   lamp_fx::LayerRow row;
   row.lamps = L.lamps.data();
   row.nLamps = static_cast<int>(nl);
-  row.combined = L.combined.data();
+  row.prefix = L.prefix.data();
+  row.prefix_all = L.prefixAll;
   row.exact = L.exact.data();
   row.gw = L.gw;
   row.gh = L.gh;
@@ -350,7 +387,6 @@ void tileRow(const FastJob& J, std::size_t r) {
   row.f = J.f;
   row.cx = J.cx;
   row.cy = J.cy;
-  row.max_distance = J.maxDistance;
   const int j1 = std::min(static_cast<int>(kCell * (r + 1)), J.height);
   for (int j = static_cast<int>(kCell * r); j < j1; ++j) {
     const std::size_t off = static_cast<std::size_t>(j) * static_cast<std::size_t>(J.width);
@@ -380,14 +416,22 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
   L.hmid.resize(nl * plane);
   L.vmid.resize(nl * plane);
   L.centre.resize(nl * plane);
-  L.combined.resize(3 * plane);
+  // Glow: the lamps nearest first, and every partial sum kept (a segment of pixels whose
+  // surfaces are at least as far as its m nearest lamps takes their sum from one grid).
+  L.prefixAll = distance != nullptr;
+  L.prefix.resize((L.prefixAll ? nl : 1) * 3 * plane);
+  L.order.resize(nl);
+  for (std::size_t l = 0; l < nl; ++l) L.order[l] = l;
+  if (L.prefixAll)  // std::sort: no buffer (steady frames allocate nothing); ties by index
+    std::sort(L.order.begin(), L.order.end(), [&lamps](std::size_t a, std::size_t b) {
+      return lamps[a].distance < lamps[b].distance || (lamps[a].distance == lamps[b].distance && a < b);
+    });
   L.floor.resize(nl);
   L.imageX.resize(nl);
   L.imageY.resize(nl);
   L.exact.resize(static_cast<std::size_t>(L.gw - 1) * static_cast<std::size_t>(L.gh - 1) * nl);
-  float maxDistance = 0.0f;
   for (std::size_t l = 0; l < nl; ++l) {
-    const LampEffects::Tables::Radial& rad = lamps[l];
+    const LampEffects::Tables::Radial& rad = lamps[L.order[l]];
     lamp_fx::KernelLamp& k = L.lamps[l];
     for (int a = 0; a < 3; ++a) {
       k.e[a] = rad.e[a];
@@ -402,10 +446,9 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
     const bool ahead = rad.e[0] > 0.0f;
     L.imageX[l] = ahead ? static_cast<float>(c.x - f * static_cast<double>(rad.e[1] / rad.e[0])) : -1e30f;
     L.imageY[l] = ahead ? static_cast<float>(c.y - f * static_cast<double>(rad.e[2] / rad.e[0])) : -1e30f;
-    maxDistance = std::max(maxDistance, rad.distance);
   }
   FastJob job{&L, distance, out.data(), cam.width, cam.height, static_cast<float>(f), static_cast<float>(c.x),
-              static_cast<float>(c.y), maxDistance};
+              static_cast<float>(c.y)};
   const FastJob* jp = &job;
   pool.parallelFor(static_cast<std::size_t>(L.gh), [jp](std::size_t r) { gridRow(*jp, r); });
   pool.parallelFor(static_cast<std::size_t>(L.gh - 1), [jp](std::size_t r) { tileRow(*jp, r); });
@@ -557,7 +600,9 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
       const PhaseIdentity phaseId = phaseIdentity(fog.phase);
       if (!(cc.valid && cc.R == R && cc.kt == kt && cc.albedo == fog.albedo && cc.phase == phaseId &&
             cc.fromTable == fromTable)) {
-        auto curve = fromTable ? glowCurveFromTable(*t.ms, *t.iso, fog, R, kNodes) : glowCurve(*t.iso, fog, R, kNodes);
+        if (fromTable) t.tabulateFlux();
+        auto curve = fromTable ? glowCurveFromTable(*t.ms, *t.iso, fog, R, kNodes, false) : glowCurve(*t.iso, fog, R, kNodes);
+        if (curve && fromTable) curve->single_flux = fog.albedo * t.singleFlux(kt * R);
         cc.valid = true;
         cc.R = R;
         cc.kt = kt;

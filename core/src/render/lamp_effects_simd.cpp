@@ -23,7 +23,7 @@ HWY_BEFORE_NAMESPACE();
 namespace fogbeam::lamp_fx::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-// At most one cell (kCell = 8 pixels) per vector: a cell's lanes share their grid corners.
+// At most one cell (kCell = 16 pixels) per vector: a cell's lanes share their grid corners.
 using DF = hn::CappedTag<float, kCell>;
 using DI = hn::RebindToSigned<DF>;
 using VF = hn::Vec<DF>;
@@ -87,14 +87,23 @@ void FillRow(const LayerRow& R) {
                                            static_cast<std::size_t>(c)) * static_cast<std::size_t>(R.nLamps);
     const std::size_t n00 = static_cast<std::size_t>(r) * gw + static_cast<std::size_t>(c);
     const std::size_t n10 = n00 + 1, n01 = n00 + gw, n11 = n01 + 1;
-    // Weight 1 for every lamp (glare; glow where no surface of the segment is nearer than the
-    // farthest lamp, (d − R/2)/(R/2) ≥ 1): the sum over lamps interpolates as one grid.
-    bool combined = R.distance == nullptr;
+    // The glow's weight per lamp is clamp((d − R/2)/(R/2), 0, 1): 1 where d ≥ R, 0 where
+    // d ≤ R/2 (d = +inf: 1). With the lamps nearest first, the m1 lamps with R ≤ the segment's
+    // nearest surface weigh 1 at every pixel of it and come from their partial sum, one grid;
+    // the lamps from m2 on (R/2 ≥ its farthest surface) weigh 0 and are skipped; those in
+    // between are weighted pixel by pixel. Glare: weights 1, m1 = every lamp.
+    int m1 = R.nLamps, m2 = R.nLamps;
     const float* dist = nullptr;
-    if (!combined) {
-      float dmin = R.distance[i0];
-      for (int k = 1; k < m; ++k) dmin = std::min(dmin, R.distance[i0 + k]);
-      combined = dmin >= R.max_distance;
+    if (R.distance != nullptr) {
+      float dmin = R.distance[i0], dmax = R.distance[i0];
+      for (int k = 1; k < m; ++k) {
+        dmin = std::min(dmin, R.distance[i0 + k]);
+        dmax = std::max(dmax, R.distance[i0 + k]);
+      }
+      m1 = 0;
+      while (m1 < R.nLamps && 2.0f * R.lamps[m1].half_distance <= dmin) ++m1;
+      m2 = m1;
+      while (m2 < R.nLamps && R.lamps[m2].half_distance < dmax) ++m2;
       if (m == kCell) {
         dist = R.distance + i0;
       } else {
@@ -102,6 +111,8 @@ void FillRow(const LayerRow& R) {
         dist = dtmp;
       }
     }
+    const float* sum = m1 == 0 ? nullptr
+                               : R.prefix + (R.prefix_all ? static_cast<std::size_t>(m1 - 1) * 3 * plane : 0);
     // Bilinear weights along the row: the row's two grid values a (left), bb (right) at v.
     auto rowLerp = [&](const float* g, float& a, float& bb) {
       a = g[n00] + v * (g[n01] - g[n00]);
@@ -110,15 +121,15 @@ void FillRow(const LayerRow& R) {
     for (int k0 = 0; k0 < m; k0 += N) {
       const VF t = hn::Mul(hn::Add(lane, hn::Set(d, static_cast<float>(k0))), hn::Set(d, 1.0f / kCell));
       const VF x = hn::Add(hn::Add(lane, hn::Set(d, static_cast<float>(i0 + k0))), hn::Set(d, 0.5f));
-      VF acc[3];
-      if (combined) {
+      VF acc[3] = {zero, zero, zero};
+      if (sum != nullptr) {
         for (int ch = 0; ch < 3; ++ch) {
           float a, bb;
-          rowLerp(R.combined + static_cast<std::size_t>(ch) * plane, a, bb);
+          rowLerp(sum + static_cast<std::size_t>(ch) * plane, a, bb);
           acc[ch] = hn::MulAdd(t, hn::Set(d, bb - a), hn::Set(d, a));
         }
         // Lamps evaluated per pixel here: their exact value replaces their interpolated share.
-        for (int l = 0; l < R.nLamps; ++l) {
+        for (int l = 0; l < m1; ++l) {
           if (!flags[l]) continue;
           const KernelLamp& L = R.lamps[l];
           float a, bb;
@@ -126,12 +137,10 @@ void FillRow(const LayerRow& R) {
           const VF diff = hn::Sub(Radial(d, L, x, b, R.f, R.cx), hn::MulAdd(t, hn::Set(d, bb - a), hn::Set(d, a)));
           for (int ch = 0; ch < 3; ++ch) acc[ch] = hn::MulAdd(hn::Set(d, L.color[ch]), diff, acc[ch]);
         }
-      } else {
-        // Glow with surfaces nearer than a lamp: each lamp's share × its weight
-        // clamp((d − R/2)/(R/2), 0, 1) per pixel (d = +inf: 1).
-        acc[0] = acc[1] = acc[2] = zero;
+      }
+      if (m2 > m1) {
         const VF dv = hn::LoadU(d, dist + k0);
-        for (int l = 0; l < R.nLamps; ++l) {
+        for (int l = m1; l < m2; ++l) {
           const KernelLamp& L = R.lamps[l];
           const VF w = hn::Min(hn::Max(hn::Mul(hn::Sub(dv, hn::Set(d, L.half_distance)), hn::Set(d, L.inv_half_distance)), zero), one);
           if (hn::AllTrue(d, hn::Eq(w, zero))) continue;

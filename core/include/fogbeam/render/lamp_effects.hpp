@@ -43,11 +43,13 @@
 // How the layers are filled (docs/airlight.md, "Cost of glow and glare"). Both are Σ over lamps
 // of colour × weight × F_i(θ_i), F_i a 512-node radial table over √sin(θ/2) (the glow curve ×
 // its source; CIE 146's L_v/E × E), weight 1 (glare) or the glow's clamp((d − R/2)/(R/2), 0, 1).
-// LampEffectsPath::Fast (default): F_i exactly at a grid of nodes every 8 px (kCell) and at each
-// 8 × 8 tile's centre and edge midpoints; a tile interpolates lamp i bilinearly unless the lamp's
+// LampEffectsPath::Fast (default): F_i exactly at a grid of nodes every 16 px (kCell) and at each
+// 16 × 16 tile's centre and edge midpoints; a tile interpolates lamp i bilinearly unless the lamp's
 // image is within 2 tiles or the interpolation misses those samples by more than 0.25 % of
 // max(their smallest, floor) (floor: 0 for the glare, 1e-4 of the lamp's peak for the glow),
-// where lamp i goes per pixel; the weight is always per pixel (d jumps at silhouettes). SIMD
+// where lamp i goes per pixel; the weight is always per pixel (d jumps at silhouettes), and a
+// row segment's lamps of weight 1 (surfaces at least as far) come from one grid of partial sums
+// over the lamps, nearest first; those of weight 0 are skipped. SIMD
 // (Highway, lamp_effects_simd.cpp) on the pool, tile rows in parallel. Within 0.25 % of the exact
 // path (every pixel, as before) on the tests' scenes; their bound is 1 %.
 // LampEffectsPath::Exact: every pixel, every lamp, scalar (the reference).
@@ -119,9 +121,15 @@ struct GlowCurve {
                                           int nodes = 512);
 /// The same nodes from a multiple-scattering table (GlowModel::Table): glow = K_t² f(K_t R, θ, Ω)
 /// (orders ≥ 2, albedo included; no clamp, no energy match: scale = 1, terms 0; `single` and
-/// `apsf` empty, single_flux from S₁ on every 4th node).
+/// `apsf` empty, single_flux from S₁ on every 4th node, or 0 without `withSingleFlux`: it only
+/// feeds a report figure, and costs more than the rest of the curve).
 [[nodiscard]] Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const kernels::IsoTable& table,
-                                                   const Medium& fog, double distance_m, int nodes = 512);
+                                                   const Medium& fog, double distance_m, int nodes = 512,
+                                                   bool withSingleFlux = true);
+/// R² Φ[S₁] of an isotropic source of 1 cd, albedo 1, through the sphere of radius R about it
+/// (cd): a function of the optical distance T = K_t R alone (S₁ R² depends on K_t and R only
+/// through it), as GlowCurve::single_flux computes it.
+[[nodiscard]] double singleScatteredFlux(const kernels::IsoTable& table, double opticalDistance, int nodes = 512);
 /// Mean intensity of `lamp` (cd) over each annulus η ∈ [edges[k], edges[k+1]] (radians) about the
 /// direction from the lamp to `eye`, k < bins (the multiple-scattering tables' emission bins).
 void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out);
@@ -165,7 +173,7 @@ class LampEffects {
 /// internal to LampEffects, declared here as the per-target half of this header.
 namespace lamp_fx {
 inline constexpr int kNodes = 512;  ///< radial table nodes over u = √sin(θ/2), u_i = i / (kNodes − 1)
-inline constexpr int kCell = 8;     ///< coarse grid step, pixels (nodes at pixel centres 8c + ½, 8r + ½)
+inline constexpr int kCell = 16;    ///< coarse grid step, pixels (nodes at pixel centres 8c + ½, 8r + ½)
 
 struct KernelLamp {
   float e[3] = {1, 0, 0};                 ///< lamp direction, camera frame (+x forward, +y left, +z up)
@@ -181,12 +189,16 @@ struct KernelLamp {
 struct LayerRow {
   const KernelLamp* lamps = nullptr;
   int nLamps = 0;
-  const float* combined = nullptr;       ///< 3 planes gw × gh: Σ colour × grid (weights 1)
+  /// Partial sums of colour × grid over the first m lamps, 3 planes gw × gh each: with
+  /// `prefix_all` for m = 1 … nLamps at prefix + (m − 1)·3·gw·gh (the lamps then sorted by
+  /// distance, nearest first: a segment's lamps of weight 1 are a prefix of them), else only
+  /// m = nLamps, at `prefix` (glare: weights 1).
+  const float* prefix = nullptr;
+  bool prefix_all = false;
   const std::uint8_t* exact = nullptr;   ///< (gw − 1) × (gh − 1) tiles × nLamps flags
   int gw = 0, gh = 0, width = 0, j = 0;
   float f = 1.0f, cx = 0.0f, cy = 0.0f;  ///< focal length and principal point, pixels
   const float* distance = nullptr;       ///< row j's surface distances (glow), nullptr: weights 1
-  float max_distance = 0.0f;             ///< farthest lamp, m: segments at least that far use `combined`
   float* out = nullptr;                  ///< row j, 3 floats per pixel
 };
 
