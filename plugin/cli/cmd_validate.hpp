@@ -52,6 +52,10 @@ struct ValidateOptions {
   int pt_samples = 20000;
   /// --pt-out: CSV of the ring figures (one row per case and ring); empty (default): none.
   std::string pt_out;
+  /// --pt-pictures: a folder to write pictures of fogbeam (single, single + glow) beside the
+  /// path tracer around an isotropic lamp, and their ring plot (SVG, CSV); empty (default): none.
+  /// Takes --pt-samples paths per angle (18 angles, 2 cases).
+  std::string pt_pictures;
 };
 
 /// Runs the validation; returns the exit status: 0, 1 when a bound is missed, 2 on bad input.
@@ -118,19 +122,23 @@ struct RingComparison {
   double fogbeam_seconds = 0.0, path_tracer_seconds = 0.0;
 };
 
+/// Where a view ray from the eye in direction `w` ends: on the case's ground below the horizon
+/// when it has one, else +inf (the night sky).
+inline double comparisonRayEnd(const RingComparisonCase& c, const Vec3& w) {
+  if (c.ground_below_m > 0.0 && w.z < 0.0) return c.ground_below_m / -w.z;
+  return std::numeric_limits<double>::infinity();
+}
+
 inline const std::vector<std::array<double, 2>>& comparisonRingsDeg() {
   static const std::vector<std::array<double, 2>> r = {{0.5, 1.0}, {1.0, 2.0}, {2.0, 4.0}, {4.0, 8.0}, {8.0, 16.0}};
   return r;
 }
 
-/// The comparison for one case; `samples` paths per ring and for the frame; `pixels` the image
-/// width and height (odd: the lamp's image is a pixel centre).
-inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uint64_t samples, std::uint64_t seed,
-                                           const std::shared_ptr<ThreadPool>& pool, int pixels = 351) {
-  using Clock = std::chrono::steady_clock;
-  RingComparison out;
-  out.c = c;
-  out.distance_m = c.optical_distance / c.extinction_per_m;
+/// The case's scene (header comment above): `pixels` × `pixels`, the lamp on the +x axis at
+/// R = T / K_t, and each pixel centre's ray end (the ground below the horizon, else +inf) in
+/// `surface` (black surfaces).
+inline Result<Scene> comparisonScene(const RingComparisonCase& c, int pixels, SurfaceBuffers& surface) {
+  const double distance_m = c.optical_distance / c.extinction_per_m;
   Scene scene;
   scene.source = "validate --path-tracer";
   scene.fog.extinction_per_m = c.extinction_per_m;
@@ -143,7 +151,7 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   scene.camera.height = pixels;
   SceneLamp lamp;
   lamp.name = "lamp";
-  lamp.lamp.position_m = Vec3(out.distance_m, 0.0, 0.0);
+  lamp.lamp.position_m = Vec3(distance_m, 0.0, 0.0);
   lamp.lamp.worldFromLamp = worldFromAxis(c.lamp_axis);
   if (c.profile) {
     lamp.lamp.profile = c.profile;
@@ -153,18 +161,29 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
     lamp.lamp.profile = *profile;
   }
   scene.lamps.push_back(lamp);
-  SurfaceBuffers surface;
   surface.resize(pixels, pixels);
   std::fill(surface.rgb.begin(), surface.rgb.end(), 0.0f);
-  // Where each pixel centre's ray ends: the ground below the horizon when there is one, else the sky.
-  auto endOf = [&](const Vec3& w) {
-    if (c.ground_below_m > 0.0 && w.z < 0.0) return c.ground_below_m / -w.z;
-    return std::numeric_limits<double>::infinity();
-  };
   for (int j = 0; j < pixels; ++j)
     for (int i = 0; i < pixels; ++i)
       surface.distance[static_cast<std::size_t>(j * pixels + i)] =
-          static_cast<float>(endOf(scene.camera.rayDirection(i + 0.5, j + 0.5)));
+          static_cast<float>(comparisonRayEnd(c, scene.camera.rayDirection(i + 0.5, j + 0.5)));
+  return scene;
+}
+
+/// The comparison for one case; `samples` paths per ring and for the frame; `pixels` the image
+/// width and height (odd: the lamp's image is a pixel centre).
+inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uint64_t samples, std::uint64_t seed,
+                                           const std::shared_ptr<ThreadPool>& pool, int pixels = 351) {
+  using Clock = std::chrono::steady_clock;
+  RingComparison out;
+  out.c = c;
+  out.distance_m = c.optical_distance / c.extinction_per_m;
+  SurfaceBuffers surface;
+  auto sc = comparisonScene(c, pixels, surface);
+  if (!sc) return sc.error();
+  const Scene& scene = *sc;
+  const SceneLamp& lamp = scene.lamps.front();
+  auto endOf = [&c](const Vec3& w) { return comparisonRayEnd(c, w); };
 
   // Pixels per region (rings, then the frame), by the angle of the pixel centre's ray.
   const auto& ringsDeg = comparisonRingsDeg();

@@ -89,6 +89,11 @@ void addValidateCommand(CLI::App& app, int& exitCode) {
       ->check(CLI::Range(100, 100000000));
   sub->add_option("--pt-out", opts->pt_out,
                   "--path-tracer: write the ring figures as CSV (one row per case and ring; luminances in cd/m2)");
+  sub->add_option("--pt-pictures", opts->pt_pictures,
+                  "write pictures of an isotropic lamp in fog into this folder: fogbeam single, single + glow and the "
+                  "all-orders path tracer side by side (glow_vs_path_tracer.png) and their luminance and ratio along "
+                  "the image's centre row (glow_rings.svg, .csv); --pt-samples paths per angle, 36 angles")
+      ->check(CLI::ExistingDirectory);
   sub->callback([opts, &exitCode] { exitCode = runValidate(*opts); });
 }
 
