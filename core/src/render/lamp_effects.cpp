@@ -123,6 +123,40 @@ Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const ke
   return c;
 }
 
+Result<ScatteredIrradiance> scatteredIrradiance(const MultipleScatteringTable& ms, const kernels::IsoTable& table,
+                                                const Medium& fog, double distance_m, double cosIncidence, int nodes) {
+  auto curve = glowCurveFromTable(ms, table, fog, distance_m, nodes, false);
+  if (!curve) return curve.error();
+  const double kt = fog.extinction_per_m, R = distance_m;
+  const double ci = std::clamp(cosIncidence, -1.0, 1.0), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
+  // The azimuthal integral about the source direction e of max(0, ω·n) at angle θ from e:
+  // ω·n = a + b cos φ, a = cos θ cos i, b = sin θ sin i ≥ 0; ∫ max(0, a + b cos φ) dφ is 2π a⁺
+  // where b ≤ |a|, else 2 (a φ₀ + b sin φ₀), cos φ₀ = −a/b.
+  auto azimuthal = [&](double theta) {
+    const double a = std::cos(theta) * ci, b = std::sin(theta) * si;
+    if (b <= std::abs(a)) return 2.0 * kPi * std::max(a, 0.0);
+    const double phi0 = std::acos(std::clamp(-a / b, -1.0, 1.0));
+    return 2.0 * (a * phi0 + b * std::sin(phi0));
+  };
+  // E = ∫ L(θ) W(θ) sin θ dθ: the trapezoid rule over the glow curve's nodes (dense near the
+  // source), the first interval [0, θ₁] as f(θ₁) θ₁ (the single part's L sin θ tends to a
+  // constant as θ → 0: S₁ ∝ 1/h), as fluxOver.
+  const std::vector<double>& th = curve->theta;
+  ScatteredIrradiance out;
+  auto integrate = [&](auto&& L) {
+    auto f = [&](std::size_t i) { return L(i) * azimuthal(th[i]) * std::sin(th[i]); };
+    double sum = th.size() > 1 ? f(1) * th[1] : 0.0;
+    for (std::size_t i = 2; i < th.size(); ++i) sum += 0.5 * (f(i - 1) + f(i)) * (th[i] - th[i - 1]);
+    return sum;
+  };
+  out.single = fog.albedo * integrate([&](std::size_t i) {
+    const double v = singleAt(table, kt, R, th[i]);
+    return std::isfinite(v) ? v : 0.0;
+  });
+  out.multiple = integrate([&](std::size_t i) { return curve->glow[i]; });
+  return out;
+}
+
 Result<GlowCurve> glowCurve(const kernels::IsoTable& table, const Medium& fog, double distance_m, int nodes) {
   const double kt = fog.extinction_per_m, R = distance_m, T = kt * R;
   if (nodes < 16) return Error{"glow: at least 16 nodes"};

@@ -130,6 +130,20 @@ struct GlowCurve {
 /// (cd): a function of the optical distance T = K_t R alone (S₁ R² depends on K_t and R only
 /// through it), as GlowCurve::single_flux computes it.
 [[nodiscard]] double singleScatteredFlux(const kernels::IsoTable& table, double opticalDistance, int nodes = 512);
+/// Irradiance (lux per cd of source intensity) that the fog's scattered light of an isotropic
+/// source at distance R brings to a surface element whose normal makes the angle i with the
+/// direction to the source (cos i = `cosIncidence`, which may be ≤ 0: the element faces away):
+/// E = ∫ L(θ) max(0, ω·n) dω over the sphere, L the radiance arriving from direction ω at the
+/// angle θ from the source, order 1 exactly (the F table) and orders ≥ 2 from `ms`, both with
+/// the albedo. Infinite fog: nothing blocks or reflects the light (a road absorbs part of the
+/// diffuse light: `fogbeam validate --path-tracer` prints by how much). Reentrant.
+struct ScatteredIrradiance {
+  double single = 0.0;    ///< lux per cd, order 1
+  double multiple = 0.0;  ///< lux per cd, orders ≥ 2
+};
+[[nodiscard]] Result<ScatteredIrradiance> scatteredIrradiance(const MultipleScatteringTable& ms,
+                                                             const kernels::IsoTable& table, const Medium& fog,
+                                                             double distance_m, double cosIncidence, int nodes = 512);
 /// Mean intensity of `lamp` (cd) over each annulus η ∈ [edges[k], edges[k+1]] (radians) about the
 /// direction from the lamp to `eye`, k < bins (the multiple-scattering tables' emission bins).
 void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out);
