@@ -11,6 +11,8 @@
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
+#include "test_scale.hpp"
+
 
 #include <gtest/gtest.h>
 
@@ -244,11 +246,13 @@ TEST(ScatteredLightOnSurfaces, TheTablesModelMatchesThePathTracerInInfiniteFog) 
   const auto ms = shippedMultipleScatteringTable(fog.phase);
   ASSERT_NE(ms, nullptr);
   ThreadPool pool(0);
-  // The full count at any FOGBEAM_TEST_SCALE: the path tracer's estimate of the diffuse light on
-  // an element is heavy-tailed (rare paths that pass near the lamp), and its standard error is
-  // not to be trusted at a few thousand paths (facing away, 10 000 paths: 0.076 ± 0.0065 lux
-  // against 0.102 ± 0.008 at 200 000).
-  const std::uint64_t samples = 40000;
+  // The path tracer's estimate of the diffuse light on an element is heavy-tailed (rare paths
+  // that pass near the lamp), and its standard error is not to be trusted at a few thousand paths
+  // (facing away, 10 000 paths: 0.076 ± 0.0065 lux against 0.102 ± 0.008 at 200 000): orders ≥ 2
+  // are judged at the full count only; under FOGBEAM_TEST_SCALE (the sanitizer pass) the test
+  // runs its code paths with fewer paths and judges order 1.
+  const bool full = test::scale() >= 1.0;
+  const std::uint64_t samples = std::max<std::uint64_t>(4000, static_cast<std::uint64_t>(40000.0 * test::scale()));
   struct Case {
     double R, cosI;
   };
@@ -278,7 +282,7 @@ TEST(ScatteredLightOnSurfaces, TheTablesModelMatchesThePathTracerInInfiniteFog) 
     EXPECT_NEAR(1000.0 * model.single, e1, 3.5 * s1 + 0.02 * e1) << "R " << c.R << ", cos i " << c.cosI;
     // Facing away the light comes from the back half of the fog, where the path tracer's
     // estimate is heaviest-tailed (above): order 1 only.
-    if (c.cosI > 0.0) {
+    if (full && c.cosI > 0.0) {
       EXPECT_NEAR(1000.0 * model.multiple, e2, 3.5 * s2 + 0.08 * e2) << "R " << c.R << ", cos i " << c.cosI;
     }
     EXPECT_GT(model.multiple, 0.0);
