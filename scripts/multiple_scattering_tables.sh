@@ -2,7 +2,7 @@
 # Regenerates the shipped multiple-scattering tables (config/multiple_scattering/*.msc, embedded in
 # the library at build time; docs/physics.md, "Multiple scattering tables") with `fogbeam tables`.
 # Deterministic: the same binary, paths and seed write the same files on any number of threads.
-# About 4 minutes per table on a 2-core machine (80 000 paths, 286 lamp nodes, 8 albedos).
+# About 7–19 minutes per table on a 2-core machine (80 000 paths, 286 lamp nodes, 8 albedos, emission bins).
 #   scripts/multiple_scattering_tables.sh [build/release/plugin/fogbeam] [paths]
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -66,7 +66,9 @@ void printEffects(const LampEffectsReport& r, bool glow, bool glare) {
   for (std::size_t k = 0; k < order.size() && k < kMaxRows; ++k) {
     const auto& l = rows[order[k]].sum;
     std::printf("    %7.1f %6.2f %10.4g %10.4g", l.distance_m, l.optical_distance, l.intensity_cd, l.eye_illuminance_lx);
-    if (glow && l.apsf_terms > 0)
+    if (glow && l.glow_from_table)  // the multiple-scattering tables: no energy match (λ column "table")
+      std::printf("  %10.4g %6s %5.2f %10.4g", l.glow_source_cd, "table", l.glow_share, l.glow_peak_cd_m2);
+    else if (glow && l.apsf_terms > 0)
       std::printf("  %10.4g %6.2f %5.2f %10.4g", l.glow_source_cd, l.glow_scale, l.glow_share, l.glow_peak_cd_m2);
     else if (glow)
       std::printf("  %-36s", "  (no glow: K_t R < 1.1)");
@@ -236,8 +238,16 @@ int runRender(const RenderOptions& o) {
   }
   std::printf("  airlight paths              %s\n", paths.c_str());
   if (anyEffect) {
-    std::printf("  glow                        %8.1f ms  (%s)\n", 1e3 * effects.glow_seconds,
-                fx.glow.enabled ? "Narasimhan-Nayar APSF, energy-matched to single scattering" : "off");
+    // Which model drew the glow: the tables (the default) unless the fog's phase function has
+    // none, then the APSF, as LampEffects chooses (lamp_effects.hpp).
+    bool fromTable = false;
+    for (const auto& l : effects.lamps) fromTable = fromTable || l.glow_from_table;
+    const char* glowModel = !fx.glow.enabled ? "off"
+                            : fromTable      ? "multiple-scattering tables, orders >= 2 (path-traced)"
+                            : fx.glow.model == GlowModel::Table
+                                ? "no table for this phase function: Narasimhan-Nayar APSF, energy-matched"
+                                : "Narasimhan-Nayar APSF, energy-matched to single scattering";
+    std::printf("  glow                        %8.1f ms  (%s)\n", 1e3 * effects.glow_seconds, glowModel);
     std::printf("  glare                       %8.1f ms  (%s)\n", 1e3 * effects.glare_seconds,
                 fx.glare.enabled ? "CIE 146 veiling luminance" : "off");
     printEffects(effects, fx.glow.enabled, fx.glare.enabled);
