@@ -493,10 +493,11 @@ json glowGlareStage(SizeRun& run) {
     sumGlow += luminance(&glowLayer[3 * k]);
     sumGlare += luminance(&glareLayer[3 * k]);
   }
-  int visible = 0, glowing = 0;
+  int visible = 0, glowing = 0, ownGlowing = 0;
   for (const auto& l : rep.lamps) {
     visible += l.visible ? 1 : 0;
-    glowing += l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
+    glowing += !l.own && l.visible && l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
+    ownGlowing += l.own && l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
   }
   // Issue 18's cost figure: the glow of a dozen lamps (the bench scene's, then street lamps of
   // 4 000 cd every 25 m along both sides of the road, 8 m high, until there are 12 lamps that are
@@ -533,7 +534,7 @@ json glowGlareStage(SizeRun& run) {
         fx12->evaluate(many, run.surface, glowLayer, glareLayer, rep);
         if (f > 0) dozenStats.ms.push_back(1e3 * rep.glow_seconds);  // the first sizes the buffers
       }
-      for (const auto& l : rep.lamps) dozen += l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
+      for (const auto& l : rep.lamps) dozen += !l.own && l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
     }
   }
   return {{"glow", glowStats.toJson()},
@@ -542,6 +543,7 @@ json glowGlareStage(SizeRun& run) {
           {"glare", glareStats.toJson()},
           {"lamps_in_view", visible},
           {"lamps_with_glow", glowing},
+          {"own_lamps_with_glow", ownGlowing},
           {"glow_light_share", sumBase > 0.0 ? sumGlow / sumBase : 0.0},
           {"glare_light_share", sumBase > 0.0 ? sumGlare / sumBase : 0.0},
           {"eye_illuminance_lx", rep.eye_illuminance_lx},
@@ -722,8 +724,9 @@ void printEffects(const json& e) {
     return;
   }
   char note[200];
-  std::snprintf(note, sizeof note, "  %d of %d lamps in view glow; +%.1f %% of the frame's light",
-                e["lamps_with_glow"].get<int>(), e["lamps_in_view"].get<int>(), 100.0 * e["glow_light_share"].get<double>());
+  std::snprintf(note, sizeof note, "  %d of %d lamps in view glow, and %d of the driver's; +%.1f %% of the frame's light",
+                e["lamps_with_glow"].get<int>(), e["lamps_in_view"].get<int>(), e.value("own_lamps_with_glow", 0),
+                100.0 * e["glow_light_share"].get<double>());
   printStage("glow", e["glow"], note);
   if (e.contains("glow_dozen_lamps") && e["glow_dozen_lamps"]["frames"].get<std::size_t>() > 0) {
     std::snprintf(note, sizeof note, "  12 lamps, %d glowing (the rest hidden), all moving: curves anew each frame",

@@ -214,6 +214,13 @@ bool validatePathTracer(int samples, const std::string& csvPath) {
       c.lamp_axis = axis;
       cases.push_back(c);
     }
+    // The driver's own low beam's distance (2 m in 33 m fog): the eye behind the lamp, looking
+    // along its beam; its glow from the tables below their first node (T = 0.25, held there).
+    RingComparisonCase own{"low beam from behind, HG 0.85, K_t R = 0.12 (the driver's own lamp's distance)",
+                           HenyeyGreensteinPhase{0.85}, 0.12};
+    own.profile = *lowBeam;
+    own.lamp_axis = Vec3(1, 0, 0);
+    cases.push_back(own);
   }
   auto pool = std::make_shared<ThreadPool>(0);
   std::ofstream csv;

@@ -236,6 +236,76 @@ TEST(LampEffectsLayers, GlowIsTheCurveAroundTheLampsImage) {
   }
 }
 
+// The driver's own lamps (mount = vehicle): with the tables they glow (their multiply scattered
+// light fills the fog ahead), never hidden by the bonnet, with no glare and nothing at the eye;
+// their glow's weight over a surface d away is K_t d / 2 up to d = 2/K_t; the APSF gives them
+// nothing; a file's light behind the lamp does not count.
+TEST(LampEffectsLayers, TheDriversOwnLampsGlowFromTheTablesOnly) {
+  FxScene s = setup();
+  s.scene.lamps.clear();
+  SceneLamp own;
+  own.name = "own low beam";
+  own.mount = LampMount::Vehicle;
+  own.lamp.position_m = s.scene.camera.position_m + Vec3(2.0, 0.6, -0.55);
+  own.lamp.worldFromLamp = worldFromAxis(Vec3(1.0, 0.0, 0.0));
+  own.lamp.profile = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
+  s.scene.lamps.push_back(own);
+  // A bonnet over the lamp's image: the bottom third of the image 1.5 m away.
+  for (int j = 37; j < 55; ++j)
+    for (int i = 0; i < 95; ++i) s.surface.distance[static_cast<std::size_t>(j * 95 + i)] = 1.5f;
+  auto pool = std::make_shared<ThreadPool>(2);
+  LampEffects fx = LampEffects::build(s.scene, glowOn(), glareOn(), pool).value();
+  std::vector<float> glow, glare;
+  LampEffectsReport rep;
+  fx.evaluate(s.scene, s.surface, glow, glare, rep);
+  ASSERT_EQ(rep.lamps.size(), 1u);
+  EXPECT_TRUE(rep.lamps[0].own);
+  EXPECT_FALSE(rep.lamps[0].visible);
+  EXPECT_TRUE(rep.lamps[0].glow_from_table);
+  EXPECT_GT(rep.lamps[0].glow_peak_cd_m2, 0.0);
+  EXPECT_EQ(rep.eye_illuminance_lx, 0.0);
+  for (float v : glare) EXPECT_EQ(v, 0.0f);
+  const float sky = glow[px(47, 10)], bonnet = glow[px(47, 45)];
+  EXPECT_GT(sky, 0.0f);
+  EXPECT_GT(bonnet, 0.0f);
+  // The weight: a wall 20 m away everywhere takes K_t d / 2 = 0.3 of the sky's glow, pixel by pixel.
+  SurfaceBuffers wall = s.surface;
+  std::fill(wall.distance.begin(), wall.distance.end(), 20.0f);
+  std::fill(s.surface.distance.begin(), s.surface.distance.end(), std::numeric_limits<float>::infinity());
+  std::vector<float> glowSky, glowWall;
+  fx.evaluate(s.scene, s.surface, glowSky, glare, rep);
+  fx.evaluate(s.scene, wall, glowWall, glare, rep);
+  int checked = 0;
+  for (std::size_t k = 0; k < glowSky.size(); ++k) {
+    if (!(glowSky[k] > 0.0f)) continue;
+    EXPECT_NEAR(glowWall[k], 0.3f * glowSky[k], 1e-5f * glowSky[k] + 1e-12f) << k;
+    ++checked;
+  }
+  EXPECT_EQ(checked, static_cast<int>(glowSky.size()));
+  // The APSF: nothing for the driver's lamps.
+  GlowOptions apsf = glowOn();
+  apsf.model = GlowModel::Apsf;
+  LampEffects fa = LampEffects::build(s.scene, apsf, GlareOptions{}, pool).value();
+  fa.evaluate(s.scene, s.surface, glow, glare, rep);
+  EXPECT_TRUE(rep.lamps.empty());
+  for (float v : glow) EXPECT_EQ(v, 0.0f);
+  // Light behind the lamp's axis: an isotropic 1000 cd lamp facing +x, the eye straight behind
+  // it. The annuli about the direction to the eye that lie behind the lamp are dark.
+  Lamp iso = isotropicAt(Vec3(10.0, 0.0, 0.0), 1000.0);
+  iso.worldFromLamp = worldFromAxis(Vec3(1.0, 0.0, 0.0));
+  const double edges[] = {0.0, radians(30.0), radians(60.0), radians(100.0), radians(140.0), kPi};
+  double all[5], front[5];
+  glowAnnulusMeans(iso, Vec3(0.0), edges, 5, all);
+  glowAnnulusMeans(iso, Vec3(0.0), edges, 5, front, true);
+  for (int k = 0; k < 5; ++k) EXPECT_NEAR(all[k], 1000.0, 1e-9);
+  EXPECT_EQ(front[0], 0.0);
+  EXPECT_EQ(front[1], 0.0);
+  EXPECT_GT(front[2], 0.0);
+  EXPECT_LT(front[2], 1000.0);
+  EXPECT_NEAR(front[3], 1000.0, 1e-9);
+  EXPECT_NEAR(front[4], 1000.0, 1e-9);
+}
+
 // The fog's scattered light on a surface element (scatteredIrradiance, issue 18): the tables'
 // model against the all-orders path tracer in the same infinite fog, paths from the element in
 // cosine-distributed directions about its normal (E = π × mean L). Facing the lamp, grazing and
@@ -377,11 +447,15 @@ TEST(LampEffectsLayers, SwitchedOffLampsAndLampsBehindTheEyeGiveNothing) {
   ASSERT_EQ(rep.lamps.size(), 1u);
   EXPECT_FALSE(rep.lamps[0].visible);
   EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
-  // The driver's own lamps (mount = vehicle) give neither: the bonnet hides them.
+  // The driver's own lamps (mount = vehicle) give no glare and nothing at the eye: the bonnet
+  // hides them (with the tables they glow: TheDriversOwnLampsGlowFromTheTablesOnly).
   s.scene.lamps[0].lamp.position_m = Vec3(80.0, 10.0, 6.2);
   s.scene.lamps[0].mount = LampMount::Vehicle;
   fx.evaluate(s.scene, s.surface, glow, glare, rep);
-  EXPECT_TRUE(rep.lamps.empty());
+  ASSERT_EQ(rep.lamps.size(), 1u);
+  EXPECT_TRUE(rep.lamps[0].own);
+  EXPECT_FALSE(rep.lamps[0].visible);
+  EXPECT_EQ(rep.eye_illuminance_lx, 0.0);
   EXPECT_EQ(*std::max_element(glare.begin(), glare.end()), 0.0f);
   s.scene.lamps[0].mount = LampMount::World;
   // A lamp added after build() (traffic arriving) is evaluated, switched on.

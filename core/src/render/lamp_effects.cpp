@@ -219,7 +219,8 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
   return sum / (kBands * kAzimuths);
 }
 
-void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out) {
+void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out,
+                      bool frontOnly) {
   const Vec3 d = eye - lamp.position_m;
   const double len = glm::length(d);
   for (std::size_t k = 0; k < bins; ++k) out[k] = 0.0;
@@ -239,7 +240,8 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
       const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
       for (int a = 0; a < kAzimuths; ++a) {
         const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
-        sum += lamp.profile->intensity(c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v));
+        const Vec3 w = c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v);
+        if (!frontOnly || w.x >= 0.0) sum += lamp.profile->intensity(w);
       }
     }
     out[k] = sum / (kBands * kAzimuths);
@@ -256,7 +258,10 @@ struct LampEffects::Tables {
   struct Radial {
     float e[3] = {1, 0, 0};      // lamp direction, camera frame
     float color[3] = {1, 1, 1};  // glow: colour × table; glare: colour × E
-    float distance = 0.0f;       // R, metres (glow's occlusion weight)
+    float distance = 0.0f;       // R, metres
+    // The glow's occlusion weight clamp((d − from)/(to − from), 0, 1) at a pixel whose surface is
+    // d away (LampEffects::evaluate: R/2 … R for a lamp in the scene, 0 … 2/K_t for the driver's own).
+    float weightFrom = 0.0f, weightTo = 0.0f;
     const float* table = nullptr;
   };
   std::vector<Radial> glow, glare;
@@ -458,7 +463,7 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
   for (std::size_t l = 0; l < nl; ++l) L.order[l] = l;
   if (L.prefixAll)  // std::sort: no buffer (steady frames allocate nothing); ties by index
     std::sort(L.order.begin(), L.order.end(), [&lamps](std::size_t a, std::size_t b) {
-      return lamps[a].distance < lamps[b].distance || (lamps[a].distance == lamps[b].distance && a < b);
+      return lamps[a].weightTo < lamps[b].weightTo || (lamps[a].weightTo == lamps[b].weightTo && a < b);
     });
   L.floor.resize(nl);
   L.imageX.resize(nl);
@@ -471,8 +476,9 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
       k.e[a] = rad.e[a];
       k.color[a] = rad.color[a];
     }
-    k.half_distance = 0.5f * rad.distance;
-    k.inv_half_distance = 2.0f / rad.distance;
+    k.weight_from = rad.weightFrom;
+    k.weight_to = rad.weightTo;
+    k.weight_scale = rad.weightTo > rad.weightFrom ? 1.0f / (rad.weightTo - rad.weightFrom) : 0.0f;
     k.table = rad.table;
     k.grid = L.grid.data() + l * plane;
     L.floor[l] = floorFraction * *std::max_element(rad.table, rad.table + kNodes);
@@ -562,9 +568,13 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     const SceneLamp& sl = scene.lamps[li];
     // The driver's own lamps (mount = vehicle) sit ahead of and below the eye, behind the
     // bonnet and inside their housings: their direct light does not reach the eye, so they have
-    // neither glow nor glare (their veil is the airlight layer's). Their profiles may still hold
-    // candela values backwards (a measured file's rear hemisphere), which would otherwise count.
-    if (sl.mount == LampMount::Vehicle) continue;
+    // no glare, and their single-scattered veil is the airlight layer's. Their multiply
+    // scattered light fills the fog ahead like any lamp's: with the tables they glow (never
+    // hidden: the bonnet hides the lamp, not the fog its light fills), from their light forward
+    // of the lamp only (a measured file's rear hemisphere would otherwise count: housing and
+    // body take it). The APSF (a lamp in view at K_t R ≥ 1.1) has nothing for them.
+    const bool own = sl.mount == LampMount::Vehicle;
+    if (own && !(glow_.enabled && t.ms != nullptr)) continue;
     const Lamp& lamp = sl.lamp;
     const Vec3 toLamp = lamp.position_m - cam.position_m;
     const double R = glm::length(toLamp);
@@ -580,20 +590,21 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     }
     rep.distance_m = R;
     rep.optical_distance = kt * R;
+    rep.own = own;
     // The layers carry colour × the profile's values; the report gives luminous figures, the
     // profile's × the colour's mean (1 for white; the point lamps of an aperture carry their
     // quadrature weight in the colour, so theirs add up to the lamp's).
     const double luminous = (lamp.color.x + lamp.color.y + lamp.color.z) / 3.0;
     const double intensity = lamp.profile->intensity(glm::transpose(lamp.worldFromLamp) * (-toLamp / R));
     const double illuminance = intensity * std::exp(-kt * R) / (R * R);  // profile's, lux
-    rep.intensity_cd = luminous * intensity;
-    rep.eye_illuminance_lx = luminous * illuminance;
+    rep.intensity_cd = own ? 0.0 : luminous * intensity;  // the driver's own: none reaches the eye
+    rep.eye_illuminance_lx = own ? 0.0 : luminous * illuminance;
     // Hidden: its image is in the frame and the surfaces there are nearer than the lamp. The
     // 2 × 2 pixels around the image point are read, and one that reaches the lamp keeps it
     // visible: a distant lamp is smaller than a pixel, whose centre ray may meet the road just
     // in front of it (at 104 m a 320 px wide, 60° view's pixel spans 0.34 m, half a low beam's
     // height above the road), and a single pixel made lamps flicker between hidden and seen.
-    bool visible = eCam.x > 0.0, hidden = false;
+    bool visible = eCam.x > 0.0 && !own, hidden = false;
     if (visible) {
       const double x = c.x - f * eCam.y / eCam.x, y = c.y - f * eCam.z / eCam.x;
       if (x >= 0.0 && y >= 0.0 && x < cam.width && y < cam.height) {
@@ -613,6 +624,14 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     Tables::Radial rad;
     for (int k = 0; k < 3; ++k) rad.e[k] = static_cast<float>(eCam[k]);
     rad.distance = static_cast<float>(R);
+    // The glow's occlusion weight: a lamp's multiply scattered light along a view ray gathers
+    // about the lamp, so surfaces nearer than R/2 see none of it and surfaces beyond R all of it.
+    // The driver's own lamps are at the eye (R ≈ 2 m) and their light fills the fog ahead over
+    // mean free paths: a ramp from 0 to 2/K_t, whose integral is that of 1 − e^{−K_t d}
+    // (uniformly gathered light, attenuated). Neither is checked against the path tracer with
+    // surfaces yet (its comparisons are against the night sky).
+    rad.weightFrom = own ? 0.0f : static_cast<float>(0.5 * R);
+    rad.weightTo = own ? static_cast<float>(2.0 / std::max(kt, 1e-6)) : static_cast<float>(R);
     if (rep.visible) report.eye_illuminance_lx += rep.eye_illuminance_lx;
     if (glare_.enabled && rep.visible) {
       for (int k = 0; k < 3; ++k) rad.color[k] = static_cast<float>(lamp.color[k] * illuminance);
@@ -688,7 +707,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
           const std::size_t nK = edges.size() - 1, nA = t.ms->angles().size();
           t.annulus.resize(nK);
           t.effective.resize(nA);
-          glowAnnulusMeans(lamp, cam.position_m, edges.data(), nK, t.annulus.data());
+          glowAnnulusMeans(lamp, cam.position_m, edges.data(), nK, t.annulus.data(), own);
           for (std::size_t j = 0; j < nA; ++j) {
             double e = 0.0;
             for (std::size_t k = 0; k < nK; ++k) e += cc.shares[j * nK + k] * t.annulus[k];
@@ -752,7 +771,8 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
           float weight = 1.0f;
           if (jp->occlusion) {
             const float d = dist[i];
-            weight = std::isinf(d) ? 1.0f : std::clamp((d - 0.5f * L.distance) / (0.5f * L.distance), 0.0f, 1.0f);
+            weight = std::isinf(d) ? 1.0f
+                                   : std::clamp((d - L.weightFrom) / (L.weightTo - L.weightFrom), 0.0f, 1.0f);
             if (weight <= 0.0f) continue;
           }
           const float vx = wx - L.e[0], vy = wy - L.e[1], vz = wz - L.e[2];

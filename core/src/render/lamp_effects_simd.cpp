@@ -87,12 +87,13 @@ void FillRow(const LayerRow& R) {
                                            static_cast<std::size_t>(c)) * static_cast<std::size_t>(R.nLamps);
     const std::size_t n00 = static_cast<std::size_t>(r) * gw + static_cast<std::size_t>(c);
     const std::size_t n10 = n00 + 1, n01 = n00 + gw, n11 = n01 + 1;
-    // The glow's weight per lamp is clamp((d − R/2)/(R/2), 0, 1): 1 where d ≥ R, 0 where
-    // d ≤ R/2 (d = +inf: 1). With the lamps nearest first, the m1 lamps with R ≤ the segment's
-    // nearest surface weigh 1 at every pixel of it and come from their partial sum, one grid;
-    // the lamps from m2 on (R/2 ≥ its farthest surface) weigh 0 and are skipped; those in
-    // between are weighted pixel by pixel. Glare: weights 1, m1 = every lamp.
+    // The glow's weight per lamp is clamp((d − from) × scale, 0, 1): 1 where d ≥ to, 0 where
+    // d ≤ from (d = +inf: 1). With the lamps sorted by `to`, the m1 lamps whose `to` is at most
+    // the segment's nearest surface weigh 1 at every pixel of it and come from their partial
+    // sum, one grid; of the others, those whose `from` is at least its farthest surface weigh 0
+    // and are skipped, the rest are weighted pixel by pixel. Glare: weights 1, m1 = every lamp.
     int m1 = R.nLamps, m2 = R.nLamps;
+    float dmaxSeg = 0.0f;
     const float* dist = nullptr;
     if (R.distance != nullptr) {
       float dmin = R.distance[i0], dmax = R.distance[i0];
@@ -101,9 +102,8 @@ void FillRow(const LayerRow& R) {
         dmax = std::max(dmax, R.distance[i0 + k]);
       }
       m1 = 0;
-      while (m1 < R.nLamps && 2.0f * R.lamps[m1].half_distance <= dmin) ++m1;
-      m2 = m1;
-      while (m2 < R.nLamps && R.lamps[m2].half_distance < dmax) ++m2;
+      while (m1 < R.nLamps && R.lamps[m1].weight_to <= dmin) ++m1;
+      dmaxSeg = dmax;
       if (m == kCell) {
         dist = R.distance + i0;
       } else {
@@ -142,7 +142,8 @@ void FillRow(const LayerRow& R) {
         const VF dv = hn::LoadU(d, dist + k0);
         for (int l = m1; l < m2; ++l) {
           const KernelLamp& L = R.lamps[l];
-          const VF w = hn::Min(hn::Max(hn::Mul(hn::Sub(dv, hn::Set(d, L.half_distance)), hn::Set(d, L.inv_half_distance)), zero), one);
+          if (L.weight_from >= dmaxSeg) continue;
+          const VF w = hn::Min(hn::Max(hn::Mul(hn::Sub(dv, hn::Set(d, L.weight_from)), hn::Set(d, L.weight_scale)), zero), one);
           if (hn::AllTrue(d, hn::Eq(w, zero))) continue;
           VF val;
           if (flags[l]) {

@@ -37,8 +37,10 @@
 //    light I e^{−T} / R²; added to the displayed image as disability glare is seen. The report
 //    gives its value at the image centre and each lamp's E.
 //
-// Lamps with mount = "vehicle" (the driver's own) are left out of both: the bonnet and their
-// housings keep their direct light from the eye.
+// Lamps with mount = "vehicle" (the driver's own) have no glare (the bonnet and their housings
+// keep their direct light from the eye) and glow only from the tables (GlowModel::Table): their
+// multiply scattered light fills the fog ahead; never hidden, light forward of the lamp only,
+// occlusion weight a ramp over 0 … 2/K_t (docs/airlight.md, "Glow").
 //
 // How the layers are filled (docs/airlight.md, "Cost of glow and glare"). Both are Σ over lamps
 // of colour × weight × F_i(θ_i), F_i a 512-node radial table over √sin(θ/2) (the glow curve ×
@@ -96,6 +98,7 @@ struct LampEffectsReport {
     double glow_share = 0.0;         ///< multiple / (single + multiple) scattered flux at the eye
     int apsf_terms = 0;              ///< Legendre terms summed (0: no glow, or the tables)
     bool glow_from_table = false;    ///< the glow came from the multiple-scattering tables
+    bool own = false;                ///< the driver's own lamp (mount = vehicle): glow only, from the tables
   };
   std::vector<Lamp> lamps;
   double eye_illuminance_lx = 0.0;        ///< Σ over visible lamps
@@ -146,7 +149,10 @@ struct ScatteredIrradiance {
                                                              double distance_m, double cosIncidence, int nodes = 512);
 /// Mean intensity of `lamp` (cd) over each annulus η ∈ [edges[k], edges[k+1]] (radians) about the
 /// direction from the lamp to `eye`, k < bins (the multiple-scattering tables' emission bins).
-void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out);
+/// `frontOnly`: directions behind the lamp's photometric axis (lamp-frame x < 0) count as dark
+/// (the driver's own lamps: housing and car body take what a file gives backwards).
+void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out,
+                      bool frontOnly = false);
 /// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
 /// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
 [[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);
@@ -192,8 +198,9 @@ inline constexpr int kCell = 16;    ///< coarse grid step, pixels (nodes at pixe
 struct KernelLamp {
   float e[3] = {1, 0, 0};                 ///< lamp direction, camera frame (+x forward, +y left, +z up)
   float color[3] = {0, 0, 0};             ///< layer units per table unit, per channel
-  float half_distance = 0.0f;             ///< R/2, m (glow weight)
-  float inv_half_distance = 0.0f;         ///< 2/R, 1/m
+  /// The glow's weight per pixel, clamp((d − weight_from) × weight_scale, 0, 1), d the pixel's
+  /// surface distance: 0 up to weight_from, 1 from weight_to = weight_from + 1/weight_scale (m).
+  float weight_from = 0.0f, weight_to = 0.0f, weight_scale = 0.0f;
   const float* table = nullptr;           ///< kNodes values (+1 readable past the last: not read)
   const float* grid = nullptr;            ///< the table at the grid's nodes, gw × gh, row-major
 };
@@ -206,7 +213,7 @@ struct LayerRow {
   /// Partial sums of colour × grid over the first m lamps, 3 planes gw × gh each: with
   /// `prefix_all` for m = 1 … nLamps at prefix + (m − 1)·3·gw·gh (the lamps then sorted by
   /// distance, nearest first: a segment's lamps of weight 1 are a prefix of them), else only
-  /// m = nLamps, at `prefix` (glare: weights 1).
+  /// m = nLamps, at `prefix` (glare: weights 1). Sorted by weight_to.
   const float* prefix = nullptr;
   bool prefix_all = false;
   const std::uint8_t* exact = nullptr;   ///< (gw − 1) × (gh − 1) tiles × nLamps flags
