@@ -29,14 +29,20 @@ double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-// Φ[L] R² / (2π) pieces: the trapezoid rule in θ over the nodes of f(θ) = L cos θ sin θ, the
-// first interval [0, θ₁] as f(θ₁) θ₁ (L sin θ tends to a constant as θ → 0: S₁ ∝ 1/h).
-double fluxOver(const std::vector<double>& theta, const std::vector<double>& L) {
-  double sum = 0.0;
-  auto f = [&](std::size_t i) { return L[i] * std::cos(theta[i]) * std::sin(theta[i]); };
-  if (theta.size() > 1) sum += f(1) * theta[1];
+// ∫ f(θ) dθ over the nodes θ_i of a glow curve: the trapezoid rule, the first interval [0, θ₁]
+// as f(θ₁) θ₁ (f carries L sin θ, which tends to a constant as θ → 0: S₁ ∝ 1/h). f(i) is the
+// integrand at node i. Shared by the flux (fluxOver) and the scattered irradiance on a surface.
+template <class F>
+double integrateFromApex(const std::vector<double>& theta, F&& f) {
+  double sum = theta.size() > 1 ? f(std::size_t{1}) * theta[1] : 0.0;
   for (std::size_t i = 2; i < theta.size(); ++i) sum += 0.5 * (f(i - 1) + f(i)) * (theta[i] - theta[i - 1]);
-  return 2.0 * kPi * sum;
+  return sum;
+}
+
+// Φ[L] R² / (2π) pieces: 2π ∫ L cos θ sin θ dθ (integrateFromApex).
+double fluxOver(const std::vector<double>& theta, const std::vector<double>& L) {
+  return 2.0 * kPi *
+         integrateFromApex(theta, [&](std::size_t i) { return L[i] * std::cos(theta[i]) * std::sin(theta[i]); });
 }
 
 // θ_i = 2 asin((i / (n − 1))²) (GlowCurve).
@@ -138,16 +144,11 @@ Result<ScatteredIrradiance> scatteredIrradiance(const MultipleScatteringTable& m
     const double phi0 = std::acos(std::clamp(-a / b, -1.0, 1.0));
     return 2.0 * (a * phi0 + b * std::sin(phi0));
   };
-  // E = ∫ L(θ) W(θ) sin θ dθ: the trapezoid rule over the glow curve's nodes (dense near the
-  // source), the first interval [0, θ₁] as f(θ₁) θ₁ (the single part's L sin θ tends to a
-  // constant as θ → 0: S₁ ∝ 1/h), as fluxOver.
+  // E = ∫ L(θ) W(θ) sin θ dθ over the glow curve's nodes (dense near the source): integrateFromApex.
   const std::vector<double>& th = curve->theta;
   ScatteredIrradiance out;
   auto integrate = [&](auto&& L) {
-    auto f = [&](std::size_t i) { return L(i) * azimuthal(th[i]) * std::sin(th[i]); };
-    double sum = th.size() > 1 ? f(1) * th[1] : 0.0;
-    for (std::size_t i = 2; i < th.size(); ++i) sum += 0.5 * (f(i - 1) + f(i)) * (th[i] - th[i - 1]);
-    return sum;
+    return integrateFromApex(th, [&](std::size_t i) { return L(i) * azimuthal(th[i]) * std::sin(th[i]); });
   };
   out.single = fog.albedo * integrate([&](std::size_t i) {
     const double v = singleAt(table, kt, R, th[i]);
@@ -258,7 +259,6 @@ struct LampEffects::Tables {
   struct Radial {
     float e[3] = {1, 0, 0};      // lamp direction, camera frame
     float color[3] = {1, 1, 1};  // glow: colour × table; glare: colour × E
-    float distance = 0.0f;       // R, metres
     // The glow's occlusion weight clamp((d − from)/(to − from), 0, 1) at a pixel whose surface is
     // d away (LampEffects::evaluate: R/2 … R for a lamp in the scene, 0 … 2/K_t for the driver's own).
     float weightFrom = 0.0f, weightTo = 0.0f;
@@ -288,7 +288,8 @@ struct LampEffects::Tables {
   // The report's single-scattered flux (singleScatteredFlux) of the tables' glow, tabulated in
   // log T for the IsoTable it was computed with: a moving lamp's curve would otherwise spend
   // ~128 single-scattering look-ups a frame (most of its cost) on a report figure.
-  const kernels::IsoTable* fluxIso = nullptr;
+  // Held (not a raw pointer): a new table allocated at a freed one's address must not match.
+  std::shared_ptr<const kernels::IsoTable> fluxIso;
   std::vector<double> logFlux;  // log of the flux at T = 2^(kFluxLog2Min + i / kFluxPerOctave)
   static constexpr double kFluxLog2Min = -10.0, kFluxLog2Max = 6.0, kFluxPerOctave = 4.0;
   double singleFlux(double T) {
@@ -300,8 +301,8 @@ struct LampEffects::Tables {
     return std::exp((1.0 - w) * logFlux[i] + w * logFlux[i + 1]);
   }
   void tabulateFlux() {
-    if (fluxIso == iso.get()) return;
-    fluxIso = iso.get();
+    if (fluxIso == iso) return;
+    fluxIso = iso;
     const auto n = static_cast<std::size_t>((kFluxLog2Max - kFluxLog2Min) * kFluxPerOctave) + 1;
     logFlux.resize(n);
     for (std::size_t i = 0; i < n; ++i)
@@ -623,7 +624,6 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     rep.visible = visible && intensity > 0.0;
     Tables::Radial rad;
     for (int k = 0; k < 3; ++k) rad.e[k] = static_cast<float>(eCam[k]);
-    rad.distance = static_cast<float>(R);
     // The glow's occlusion weight: a lamp's multiply scattered light along a view ray gathers
     // about the lamp, so surfaces nearer than R/2 see none of it and surfaces beyond R all of it.
     // The driver's own lamps are at the eye (R ≈ 2 m) and their light fills the fog ahead over
