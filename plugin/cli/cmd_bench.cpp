@@ -977,6 +977,8 @@ struct TrafficRun {
   double firstMs = 0.0;  // the untimed first frame: the ego lamps' view tables built
   std::size_t evaluated = 0, mapNodes = 0, spokes = 0, movingEvaluated = 0;
   double mapMs = 0.0;
+  // Medians over the frames, ms: the spokes' stage, and the thread time per stage / threads.
+  double spokeMs = 0.0, evalMs = 0.0, judgeMs = 0.0, fillMs = 0.0;
   AirlightImage last;
   Scene lastScene;  // the poses of the last frame
 };
@@ -994,7 +996,7 @@ Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, con
   ev->evaluate(scene, surface, SubsamplingOptions{}, img);  // view tables of the ego lamps
   run.firstMs = msSince(tf);
   constexpr double kStepM = 15.0 / 30.0;                     // 15 m/s at 30 Hz
-  std::vector<double> mapMs;
+  std::vector<double> mapMs, spokeMs, evalMs, judgeMs, fillMs;
   for (int f = 0; f < o.frames; ++f) {
     for (std::size_t i : cars) {
       Lamp& l = scene.lamps[i].lamp;
@@ -1009,8 +1011,16 @@ Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, con
     run.spokes = run.last.spokes;
     run.movingEvaluated = run.last.moving_evaluated;
     mapMs.push_back(1e3 * run.last.map_seconds);
+    spokeMs.push_back(1e3 * run.last.spoke_seconds);
+    evalMs.push_back(1e3 * run.last.eval_seconds);
+    judgeMs.push_back(1e3 * run.last.judge_seconds);
+    fillMs.push_back(1e3 * run.last.fill_seconds);
   }
   run.mapMs = percentile(mapMs, 0.5);
+  run.spokeMs = percentile(spokeMs, 0.5);
+  run.evalMs = percentile(evalMs, 0.5);
+  run.judgeMs = percentile(judgeMs, 0.5);
+  run.fillMs = percentile(fillMs, 0.5);
   run.lastScene = std::move(scene);
   return run;
 }
@@ -1166,6 +1176,10 @@ json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
     r["spokes"] = run->spokes;
     r["moving_evaluated"] = run->movingEvaluated;
     r["map_ms"] = run->mapMs;
+    r["spoke_ms"] = run->spokeMs;
+    r["eval_ms"] = run->evalMs;
+    r["judge_ms"] = run->judgeMs;
+    r["fill_ms"] = run->fillMs;
     r["vs_static"] = base->airlight.median() > 0.0 ? run->airlight.median() / base->airlight.median() : 0.0;
     // The last frame's poses, per ray, on sample pixels above 1 % of its 99.5th percentile.
     const Scene& moved = run->lastScene;
@@ -1207,6 +1221,9 @@ void printTraffic(const json& t) {
     else
       std::printf("  %-30s %zu a frame; %zu (pixel, moving lamp) pairs evaluated\n", "  spokes sampled",
                   r["spokes"].get<std::size_t>(), r["moving_evaluated"].get<std::size_t>());
+    std::printf("  %-30s spokes %.2f, then per thread: evaluating %.2f, judging %.2f, filling %.2f (medians)\n",
+                "  of which, ms", r["spoke_ms"].get<double>(), r["eval_ms"].get<double>(), r["judge_ms"].get<double>(),
+                r["fill_ms"].get<double>());
     printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
   }
   const json& c = t["changes"];

@@ -141,6 +141,7 @@ struct AirlightImage {
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
   std::size_t spokes = 0;        ///< moving lamps' spokes sampled before the pixels this frame (pencil path)
+  double spoke_seconds = 0.0;    ///< part of `seconds` spent planning and sampling those spokes (wall time)
   std::size_t spokes_kept = 0;   ///< spokes the frame's rays read that were kept from an earlier frame (PencilAirlight::reset)
   /// (pixel, moving lamp) pairs evaluated; the others of the evaluated pixels were interpolated
   /// lamp by lamp where that lamp's light is smooth (pencil path, subsampled)
