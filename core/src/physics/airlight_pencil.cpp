@@ -216,22 +216,13 @@ void PencilAirlight::sampleSpoke(int s) const {
   const Vec3 u = ev.lampFromWorld_ * (-e0_);
   const Vec3 v = ev.lampFromWorld_ * (std::cos(phi) * e1_ + std::sin(phi) * e2_);
   const double invEighth = 8.0 / radians(options_.piece_deg);
-  // I at ψ from the nearest node of the grid of eighths of piece_deg (gridCos_, gridSin_): off
-  // the grid, cos and sin of ψ by the angle-sum rule with the offset d (|d| ≤ piece_deg / 16,
-  // 2.2e-3 rad at 2°) in Taylor series to d⁵ (truncation < d⁶/720 ≈ 2e-19; exact on the nodes): most of a spoke's
-  // samples lie at its breakpoints, off the grid, where a libm sincos was ~15 % of the spoke.
-  const double eighth = radians(options_.piece_deg) / 8.0;
-  const double lastNode = static_cast<double>(gridCos_.size() - 1);
   auto intensity = [&](double psi) {
-    const double k = std::clamp(std::round(psi * invEighth), 0.0, lastNode);
-    const std::size_t i = static_cast<std::size_t>(k);
-    const double d = psi - k * eighth;
-    if (std::abs(d) > 0.6 * eighth) return profile.intensity(std::cos(psi) * u + std::sin(psi) * v);
-    const double d2 = d * d;
-    const double cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0));
-    const double sd = d * (1.0 - d2 * ((1.0 / 6.0) - d2 * (1.0 / 120.0)));
-    const double c = gridCos_[i] * cd - gridSin_[i] * sd, sn = gridSin_[i] * cd + gridCos_[i] * sd;
-    return profile.intensity(c * u + sn * v);
+    const double g = psi * invEighth, k = std::round(g);
+    if (std::abs(g - k) < 1e-9 && k >= 0.0 && k < static_cast<double>(gridCos_.size())) {
+      const std::size_t i = static_cast<std::size_t>(k);
+      return profile.intensity(gridCos_[i] * u + gridSin_[i] * v);
+    }
+    return profile.intensity(std::cos(psi) * u + std::sin(psi) * v);
   };
 
   // Breakpoints as in the accurate method: the profile's kinks (spot rings, feature lines of

@@ -194,9 +194,10 @@ std::vector<GridLine> allGridLines(const TabulatedProfile& t) {
 
 // Every angle as an atan2 (acos x = atan2(√(y² + z²), x), asin z = atan2(z, √(x² + y²)) for a
 // unit w), through the inlined fastAtan2 (within ~2 ulp of libm's): this runs once per profile
-// look-up, and the libm atan2 + asin/acos pair was ~40 % of a moving lamp's spoke sampling and
-// of a view table build. The atan2 forms also keep full precision near the poles, where acos
-// and asin lose half the digits, and do not need |w| = 1 exactly.
+// look-up, and libm's atan2 and asin were 10 % and 6 % of the CPU time of `fogbeam bench
+// --only-traffic` in perf (spokes, view tables, per-ray checks). The atan2 forms also keep full
+// precision near the poles, where acos and asin lose half the digits, and do not need |w| = 1
+// exactly.
 FileAngles anglesFromDirection(PhotometricType type, const Vec3& w) noexcept {
   switch (type) {
     case PhotometricType::C:
