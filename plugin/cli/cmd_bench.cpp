@@ -1221,9 +1221,12 @@ void printTraffic(const json& t) {
     else
       std::printf("  %-30s %zu a frame; %zu (pixel, moving lamp) pairs evaluated\n", "  spokes sampled",
                   r["spokes"].get<std::size_t>(), r["moving_evaluated"].get<std::size_t>());
-    std::printf("  %-30s spokes %.2f, then per thread: evaluating %.2f, judging %.2f, filling %.2f (medians)\n",
-                "  of which, ms", r["spoke_ms"].get<double>(), r["eval_ms"].get<double>(), r["judge_ms"].get<double>(),
-                r["fill_ms"].get<double>());
+    // Where the frame goes: the spokes' stage (pencil path; wall time), then thread time per
+    // stage divided by the threads (AirlightImage::eval_seconds …).
+    char spokes[40] = "";
+    if (std::string(k) == "pencil") std::snprintf(spokes, sizeof spokes, "spokes %.2f, then ", r["spoke_ms"].get<double>());
+    std::printf("  %-30s %sper thread: evaluating %.2f, judging %.2f, filling %.2f (medians)\n", "  of which, ms", spokes,
+                r["eval_ms"].get<double>(), r["judge_ms"].get<double>(), r["fill_ms"].get<double>());
     printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
   }
   const json& c = t["changes"];

@@ -1,6 +1,8 @@
 #include <fogbeam/util/overloaded.hpp>
 #include <fogbeam/physics/profile.hpp>
 
+#include "profile_simd.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -321,6 +323,26 @@ double Profile::intensity(const Vec3& w) const noexcept {
       model_);
 }
 
+void Profile::intensitiesOnCircle(const Vec3& u, const Vec3& v, const double* psi, std::size_t n, double* out) const {
+  const auto* tab = std::get_if<TabulatedProfile>(&model_);
+  if (tab == nullptr) {
+    for (std::size_t i = 0; i < n; ++i) out[i] = intensity(std::cos(psi[i]) * u + std::sin(psi[i]) * v);
+    return;
+  }
+  // The file angles of every sample first (SIMD: profile_simd.cpp), then the look-ups.
+  thread_local std::vector<double> h, vv;
+  if (h.size() < n) {
+    h.resize(n);
+    vv.resize(n);
+  }
+  const int type = tab->type == PhotometricType::A ? detail::kTypeA
+                   : tab->type == PhotometricType::B ? detail::kTypeB
+                                                     : detail::kTypeC;
+  const double ua[3] = {u.x, u.y, u.z}, va[3] = {v.x, v.y, v.z};
+  detail::circleAngles(type, ua, va, psi, n, h.data(), vv.data());
+  for (std::size_t i = 0; i < n; ++i) out[i] = tab->atAngles(h[i], vv[i]);
+}
+
 double Profile::totalFlux() const { return sphereFlux(*this); }
 
 Profile::Peak Profile::peak() const {
@@ -362,7 +384,25 @@ void Profile::appendFeatureKinks(const Vec3& n, const Vec3& t, double lo, double
     appendKinks(n, t, lo, hi, out);
     return;
   }
-  for (const Line& l : features_) crossingsDot(n, t, l.axis, l.c, lo, hi, out);
+  // The crossings of every feature line at once (SIMD: profile_simd.cpp; crossingsDot's
+  // arithmetic), then each solution's turns within (lo, hi) as crossingsDot.
+  const std::size_t count = features_.size();
+  thread_local std::vector<double> thA, thB;
+  if (thA.size() < count) {
+    thA.resize(count);
+    thB.resize(count);
+  }
+  const double na[3] = {n.x, n.y, n.z}, ta[3] = {t.x, t.y, t.z};
+  detail::lineCrossings(na, ta, featureAx_.data(), featureAy_.data(), featureAz_.data(), featureC_.data(), count,
+                        thA.data(), thB.data());
+  for (std::size_t i = 0; i < count; ++i) {
+    if (std::isnan(thA[i])) continue;
+    for (double base : {thA[i], thB[i]})
+      for (int k = -2; k <= 2; ++k) {
+        const double th = base + k * kTwoPi;
+        if (th > lo && th < hi) out.push_back(th);
+      }
+  }
 }
 
 Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
@@ -415,6 +455,12 @@ Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
     };
     keepLargest(cand);
     keepLargest(candH);
+    for (const GridLine& l : p->features_) {
+      p->featureAx_.push_back(l.axis.x);
+      p->featureAy_.push_back(l.axis.y);
+      p->featureAz_.push_back(l.axis.z);
+      p->featureC_.push_back(l.c);
+    }
   }
   return std::shared_ptr<const Profile>(std::move(p));
 }

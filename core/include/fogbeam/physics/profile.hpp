@@ -116,6 +116,12 @@ class Profile {
 
   /// I(w) in cd for a unit lamp-frame direction w.
   [[nodiscard]] double intensity(const Vec3& w) const noexcept;
+  /// I(cos ψ_i u + sin ψ_i v) in cd for i < n, into out[i]: the profile along the great circle
+  /// through u towards v (lamp frame, u ⟂ v unit vectors), ψ in radians. The values of
+  /// intensity() up to the last bits of the direction's angles: for tabulated data the
+  /// trigonometry runs on a SIMD vector of samples at a time (a moving lamp's spokes sample
+  /// ~120 points per circle). Thread-safe.
+  void intensitiesOnCircle(const Vec3& u, const Vec3& v, const double* psi, std::size_t n, double* out) const;
   [[nodiscard]] const Model& model() const noexcept { return model_; }
 
   /// Total luminous flux Φ = ∮ I dω in lumens (numerical for tabulated data).
@@ -154,6 +160,8 @@ class Profile {
   double support_ = kPi;
   std::vector<Line> gridLines_;  // tabulated: every kink of the bilinear interpolant
   std::vector<Line> features_;   // tabulated: the subset where the slope changes most
+  // features_ as arrays (axis x, y, z, c; features_.size() each) for the SIMD crossings.
+  std::vector<double> featureAx_, featureAy_, featureAz_, featureC_;
 };
 
 /// Validates and wraps a model (computes cached properties).
