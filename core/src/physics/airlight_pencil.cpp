@@ -342,8 +342,8 @@ void PencilAirlight::sampleSpoke(int s) const {
   // quadratic when that quadratic (through its ends and middle) predicts I at its quarter
   // points within merge_tolerance × the spoke's peak, else its halves are refined in turn
   // (their middles are those quarter points); cells cut by a breakpoint split down to
-  // piece_deg. Where I is smooth a cell costs 4 samples instead of 2 per piece_deg: most of a
-  // spoke's cost is its samples (a profile look-up each: atan2, asin, two bucket searches).
+  // piece_deg. Where I is smooth a cell costs 4 samples instead of 2 per piece_deg (a profile
+  // look-up each: two arctangents, two bucket searches; the cut cells' middles batched, below).
   const double tol = options_.merge_tolerance > 0.0 ? options_.merge_tolerance * peak : -1.0;
   // Pieces whose middle sample is deferred to one batch after the pass (tabulated data): the
   // piece's index in `out`, its ends' values.
