@@ -83,6 +83,14 @@ double foldTypeC(double c, PlaneSymmetry sym) {
   }
 }
 
+// The angles base + 2πk (|k| ≤ 2) within (lo, hi): one crossing of a great circle, every turn.
+void appendTurns(double base, double lo, double hi, std::vector<double>& out) {
+  for (int k = -2; k <= 2; ++k) {
+    const double th = base + k * kTwoPi;
+    if (th > lo && th < hi) out.push_back(th);
+  }
+}
+
 // Great-circle crossings: w(θ) = cos θ n + sin θ t. Solutions of w·a = c (|a| = 1).
 void crossingsDot(const Vec3& n, const Vec3& t, const Vec3& a, double c, double lo, double hi,
                   std::vector<double>& out) {
@@ -93,12 +101,8 @@ void crossingsDot(const Vec3& n, const Vec3& t, const Vec3& a, double c, double 
   // spoke crosses ~60 feature lines of a measured low beam (profile.hpp, appendFeatureKinks).
   const double centre = fastAtan2(y, x);
   const double half = fastAtan2(std::sqrt(std::max(0.0, (r - c) * (r + c))), c);
-  for (double base : {centre - half, centre + half}) {
-    for (int k = -2; k <= 2; ++k) {
-      const double th = base + k * kTwoPi;
-      if (th > lo && th < hi) out.push_back(th);
-    }
-  }
+  appendTurns(centre - half, lo, hi, out);
+  appendTurns(centre + half, lo, hi, out);
 }
 
 double sphereFlux(const Profile& p) {
@@ -385,8 +389,8 @@ void Profile::appendFeatureKinks(const Vec3& n, const Vec3& t, double lo, double
     return;
   }
   // The crossings of every feature line at once (SIMD: profile_simd.cpp; crossingsDot's
-  // arithmetic), then each solution's turns within (lo, hi) as crossingsDot.
-  const std::size_t count = features_.size();
+  // arithmetic), then each solution's turns within (lo, hi) (appendTurns).
+  const std::size_t count = featureC_.size();
   thread_local std::vector<double> thA, thB;
   if (thA.size() < count) {
     thA.resize(count);
@@ -397,11 +401,8 @@ void Profile::appendFeatureKinks(const Vec3& n, const Vec3& t, double lo, double
                         thA.data(), thB.data());
   for (std::size_t i = 0; i < count; ++i) {
     if (std::isnan(thA[i])) continue;
-    for (double base : {thA[i], thB[i]})
-      for (int k = -2; k <= 2; ++k) {
-        const double th = base + k * kTwoPi;
-        if (th > lo && th < hi) out.push_back(th);
-      }
+    appendTurns(thA[i], lo, hi, out);
+    appendTurns(thB[i], lo, hi, out);
   }
 }
 
@@ -451,16 +452,15 @@ Result<std::shared_ptr<const Profile>> makeProfile(Profile::Model model) {
     auto keepLargest = [&](std::vector<std::pair<double, GridLine>>& v) {
       std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
       if (v.size() > static_cast<std::size_t>(Profile::kMaxFeatureLines)) v.resize(static_cast<std::size_t>(Profile::kMaxFeatureLines));
-      for (const auto& [s2, line] : v) p->features_.push_back(line);
+      for (const auto& [s2, line] : v) {
+        p->featureAx_.push_back(line.axis.x);
+        p->featureAy_.push_back(line.axis.y);
+        p->featureAz_.push_back(line.axis.z);
+        p->featureC_.push_back(line.c);
+      }
     };
     keepLargest(cand);
     keepLargest(candH);
-    for (const GridLine& l : p->features_) {
-      p->featureAx_.push_back(l.axis.x);
-      p->featureAy_.push_back(l.axis.y);
-      p->featureAz_.push_back(l.axis.z);
-      p->featureC_.push_back(l.c);
-    }
   }
   return std::shared_ptr<const Profile>(std::move(p));
 }

@@ -159,8 +159,8 @@ class Profile {
   Model model_;
   double support_ = kPi;
   std::vector<Line> gridLines_;  // tabulated: every kink of the bilinear interpolant
-  std::vector<Line> features_;   // tabulated: the subset where the slope changes most
-  // features_ as arrays (axis x, y, z, c; features_.size() each) for the SIMD crossings.
+  // Tabulated: the subset of the grid lines where the slope changes most, as arrays (axis x, y,
+  // z and c of each line) for the SIMD crossings.
   std::vector<double> featureAx_, featureAy_, featureAz_, featureC_;
 };
 
