@@ -129,30 +129,31 @@ bool PencilAirlight::middleDiffers(int a, int w) const {
   // What a ray of the middle spoke would read from the blend of the ends instead of its own
   // spoke, for sky rays at the test angles γ and for rays ending at every knot (the partial
   // sums of the expansion, eq. 3 less its scale): within spoke_tolerance of its own value, or of
-  // 1 % of the largest of these values.
-  thread_local std::vector<double> mid, diff;
-  const std::size_t rows = testCut_.size();
-  mid.assign(rows * static_cast<std::size_t>(nf), 0.0);
-  diff.assign(rows * static_cast<std::size_t>(nf), 0.0);
+  // 1 % of the largest of these values. Two passes (the largest first) rather than a buffer of
+  // the partial sums: this runs on every thread of the pool each frame, and a per-thread buffer
+  // would grow on whichever thread first met the largest pencil, an allocation in a steady frame.
+  const auto row = [&](std::size_t t) { return testRows_.data() + t * static_cast<std::size_t>(nf); };
   double peak = 0.0;
-  for (std::size_t t = 0; t < rows; ++t) {
-    const float* u = testRows_.data() + t * static_cast<std::size_t>(nf);
+  for (std::size_t t = 0; t < testCut_.size(); ++t) {
+    const float* u = row(t);
+    double sm = 0.0;
+    for (int r = 0; r < testCut_[t]; ++r) {
+      const auto k = static_cast<std::size_t>(r);
+      sm += static_cast<double>(u[k]) * static_cast<double>(pm[k]);
+      peak = std::max(peak, std::abs(sm));
+    }
+  }
+  const double floor = 0.01 * peak;
+  for (std::size_t t = 0; t < testCut_.size(); ++t) {
+    const float* u = row(t);
     double sm = 0.0, sd = 0.0;
     for (int r = 0; r < testCut_[t]; ++r) {
       const auto k = static_cast<std::size_t>(r);
       sm += static_cast<double>(u[k]) * static_cast<double>(pm[k]);
       sd += static_cast<double>(u[k]) * (static_cast<double>(pm[k]) - 0.5 * (static_cast<double>(pa[k]) + static_cast<double>(pb[k])));
-      mid[t * static_cast<std::size_t>(nf) + k] = sm;
-      diff[t * static_cast<std::size_t>(nf) + k] = sd;
-      peak = std::max(peak, std::abs(sm));
+      if (std::abs(sd) > options_.spoke_tolerance * std::max(std::abs(sm), floor)) return true;
     }
   }
-  const double floor = 0.01 * peak;
-  for (std::size_t t = 0; t < rows; ++t)
-    for (int r = 0; r < testCut_[t]; ++r) {
-      const std::size_t k = t * static_cast<std::size_t>(nf) + static_cast<std::size_t>(r);
-      if (std::abs(diff[k]) > options_.spoke_tolerance * std::max(std::abs(mid[k]), floor)) return true;
-    }
   return false;
 }
 
