@@ -229,7 +229,11 @@ void PencilAirlight::sampleSpoke(int s) const {
 
   // Breakpoints as in the accurate method: the profile's kinks (spot rings, feature lines of
   // tabulated data) and, for tabulated data, the edge of the support cone outside which I = 0.
-  std::vector<double> bp{0.0, kPi};
+  // Per thread, kept from spoke to spoke: a low-beam spoke has ~60 breakpoints, and a fresh
+  // vector cost ~10 allocations a spoke, ~20 000 a traffic frame (sampleSpoke runs only for
+  // spokes not sampled before, so steady frames do not reach it).
+  thread_local std::vector<double> bp;
+  bp.assign({0.0, kPi});
   const bool tabulated = std::holds_alternative<TabulatedProfile>(profile.model());
   if (tabulated) {
     const double sup = profile.supportHalfAngle();
@@ -527,14 +531,15 @@ void PencilAirlight::mergeSmoothPieces(std::vector<Piece>& pieces) const {
     const double u = x - p.m;
     return p.i0 + u * (p.c1 + u * p.c2);
   };
-  std::vector<Piece> merged;
+  // In place: the pieces written (`kept`) never pass the one read (i), and a spoke's vector
+  // keeps its memory from frame to frame (a second vector swapped in cost an allocation a spoke).
   for (double cell = 2.0 * w; cell <= kPi + 1e-9; cell *= 2.0) {
-    merged.clear();
+    std::size_t kept = 0;
     bool any = false;
     for (std::size_t i = 0; i < pieces.size(); ++i) {
       if (i + 1 < pieces.size()) {
-        const Piece& p = pieces[i];
-        const Piece& q = pieces[i + 1];
+        const Piece p = pieces[i];
+        const Piece q = pieces[i + 1];
         // Same doubling cell, contiguous, both of the cell's halves.
         const double c0 = std::floor(p.a / cell + 1e-9) * cell;
         const bool aligned = std::abs(p.a - c0) < 1e-9 && std::abs(q.b - (c0 + cell)) < 1e-9 &&
@@ -544,16 +549,16 @@ void PencilAirlight::mergeSmoothPieces(std::vector<Piece>& pieces) const {
           const double hw = 0.5 * (q.b - p.a), mid = p.b;
           Piece r{p.a, q.b, mid, im, (ib - ia) / (2 * hw), (ia - 2 * im + ib) / (2 * hw * hw)};
           if (std::abs(at(r, p.m) - p.i0) <= tol && std::abs(at(r, q.m) - q.i0) <= tol) {
-            merged.push_back(r);
+            pieces[kept++] = r;
             ++i;
             any = true;
             continue;
           }
         }
       }
-      merged.push_back(pieces[i]);
+      pieces[kept++] = pieces[i];
     }
-    pieces.swap(merged);
+    pieces.resize(kept);
     if (!any) break;
   }
 }
