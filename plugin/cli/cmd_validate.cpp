@@ -215,7 +215,7 @@ bool validatePathTracer(int samples, const std::string& csvPath) {
       cases.push_back(c);
     }
     // The driver's own low beam's distance (2 m in 33 m fog): the eye behind the lamp, looking
-    // along its beam; its glow from the tables below their first node (T = 0.25, held there).
+    // along its beam; its glow from the tables' nodes below T = 0.25 (1/32, 1/16, 1/8).
     RingComparisonCase own{"low beam from behind, HG 0.85, K_t R = 0.12 (the driver's own lamp's distance)",
                            HenyeyGreensteinPhase{0.85}, 0.12};
     own.profile = *lowBeam;

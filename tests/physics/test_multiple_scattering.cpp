@@ -131,12 +131,18 @@ TEST(MultipleScattering, ShippedTablesBetweenTheirNodesAgreeWithThePathTracer) {
   EXPECT_EQ(shippedMultipleScatteringTable(IsotropicPhase{}), nullptr);
 }
 
-// Below the first T node (0.25: a lamp 12 m away in 150 m fog) the shipped tables hold that
-// node's value. The path tracer finds the multiply scattered light still growing slowly as the
-// lamp comes nearer (HG 0.85, T 0.25 → 0.05: +3 % at 3°, +19 % at 20°, +64 % at 90°), so the
-// held value is low by that much: within 15 % + 3σ at T = 0.1 and 0.2, where a T² fall-off (the
-// rule before 2026-11-26) was 84 % and 36 % low.
-TEST(MultipleScattering, TheFirstNodeHoldsBelowIt) {
+// Small optical distances (a driver's own lamps, ~2 m from the eye: K_t R ≈ 0.02–0.3): the
+// shipped tables have nodes at T = 1/32, 1/16, 1/8 below the √2 ladder from 0.25. Until
+// 2026-11-27 they held the 0.25 node's value below it, while the path tracer finds the multiply
+// scattered light still growing as the lamp comes nearer (HG 0.85, T 0.25 → 0.05: +3 % at 3°,
+// +19 % at 20°, +64 % at 90°). Within 15 % + 3σ at T = 0.1 and 0.2 (between the new nodes).
+// The path tracer's estimate is heavy-tailed this close to the lamp (rare paths that wander far
+// and come back carry much of the light): at a quarter of the paths (the sanitizer builds'
+// FOGBEAM_TEST_SCALE) its mean fell to 0.3–0.8 of the full count's at T = 0.02–0.2, with σ that
+// did not cover it. So the count here is fixed (30 000 paths per point, not scaled), and
+// T < 0.1, where even that count gave ratios 0.82–1.31 with σ of 8–25 % (T = 0.02 and 0.05), is
+// left to `fogbeam validate --path-tracer` (the own-lamp case, 200 000 paths per ring).
+TEST(MultipleScattering, SmallOpticalDistancesFollowThePathTracer) {
   ThreadPool pool(2);
   const Phase phase = HenyeyGreensteinPhase{0.85};
   auto t = shippedMultipleScatteringTable(phase);
@@ -146,7 +152,7 @@ TEST(MultipleScattering, TheFirstNodeHoldsBelowIt) {
   for (double T : {0.1, 0.2})
     for (double thetaDeg : {3.0, 20.0, 90.0}) {
       const double th = thetaDeg * kDeg, table = t->radiance(cd, kt, T / kt, th, 1.0);
-      const auto pt = pathTracerMultiple(phase, kt, 1.0, T / kt, th, cd, paths(30000), static_cast<std::uint64_t>(seed++), pool);
+      const auto pt = pathTracerMultiple(phase, kt, 1.0, T / kt, th, cd, 30000, static_cast<std::uint64_t>(seed++), pool);
       std::printf("  T = %.2f, theta = %4.0f deg: table %.4g, path tracer %.4g +- %.2g (ratio %.3f)\n", T, thetaDeg,
                   table, pt.multiple.mean, pt.multiple.std_error, table / pt.multiple.mean);
       EXPECT_LT(std::abs(table - pt.multiple.mean), 3.0 * pt.multiple.std_error + 0.15 * pt.multiple.mean)

@@ -142,12 +142,15 @@ std::pair<std::size_t, double> locate(const std::vector<double>& nodes, double x
 
 MultipleScatteringOptions MultipleScatteringOptions::defaults() {
   MultipleScatteringOptions o;
+  // Below 0.25 at steps of 2: a driver's own lamps light fog at K_t R ~ 0.1 (the eye ~2 m
+  // behind them), where orders ≥ 2 are small beside order 1 but not flat in T.
+  o.optical_distances = {0.03125, 0.0625, 0.125};
   for (int i = 0; i <= 12; ++i) o.optical_distances.push_back(0.25 * std::pow(std::sqrt(2.0), i));
   for (double d : {0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0, 5.6, 8.0, 11.3, 16.0, 22.6, 32.0, 45.0, 64.0, 90.0,
                    120.0, 150.0, 180.0})
     o.angles_rad.push_back(d * kDeg);
   o.albedos = {0.7, 0.8, 0.85, 0.9, 0.94, 0.97, 0.99, 1.0};
-  o.emission_edges_deg = {0.0, 3.0, 8.0, 15.0, 30.0, 60.0, 100.0, 140.0, 180.0};
+  o.emission_edges_deg = {0.0, 3.0, 8.0, 15.0, 30.0, 60.0, 100.0, 140.0, 160.0, 170.0, 176.0, 180.0};
   return o;
 }
 
@@ -410,8 +413,9 @@ double MultipleScatteringTable::valueAtAlbedo(std::size_t a, double T, double th
   // Below the first T node: the first node's value (T is clamped above). f = L / (I K_t²) does not
   // vanish as the lamp nears the eye: the multiply scattered light about a lamp grows slowly as
   // one comes closer (the path tracer, HG 0.85, from T = 0.25 to 0.05: +3 % at θ = 3°, +19 % at
-  // 20°, +64 % at 90°), so holding it under-estimates by that much; a T² fall-off (before
-  // 2026-11-26) took 96 % of it away at T = 0.05 (TheFirstNodeHoldsBelowIt).
+  // 20°, +64 % at 90°), hence the shipped tables' nodes down to T = 1/32 (a driver's own lamps);
+  // a T² fall-off (before 2026-11-26) took 96 % of it away at T = 0.05
+  // (SmallOpticalDistancesFollowThePathTracer).
   return std::max(v, 0.0);
 }
 

@@ -46,7 +46,7 @@ namespace fogbeam {
 class ThreadPool;
 
 struct MultipleScatteringOptions {
-  /// T = K_t R nodes, ascending, > 0 (default: 0.25 … 16 at √2).
+  /// T = K_t R nodes, ascending, > 0 (default: 1/32, 1/16, 1/8, then 0.25 … 16 at √2).
   std::vector<double> optical_distances;
   /// θ nodes in radians, ascending in (0, π] (default: 0.1°, 0.2°, 0.35°, 0.5° … 22.6° at √2, then to 180°).
   std::vector<double> angles_rad;
@@ -54,7 +54,8 @@ struct MultipleScatteringOptions {
   std::vector<double> albedos;
   /// Emission bins: edges of the angle η at the lamp between the direction a node's light left it
   /// and the direction to the eye, degrees, ascending from 0 to 180 (default 0, 3, 8, 15, 30, 60,
-  /// 100, 140, 180). Each node then also holds the share of its light per bin (at the largest
+  /// 100, 140, 160, 170, 176, 180: narrow at both ends, where a headlamp seen head-on or from
+  /// behind puts its beam). Each node then also holds the share of its light per bin (at the largest
   /// albedo node), which makes the table usable for measured lamps (effectiveIntensity). Empty:
   /// isotropic lamps only.
   std::vector<double> emission_edges_deg;
