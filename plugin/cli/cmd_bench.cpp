@@ -245,6 +245,32 @@ json surfaceCpuFastStage(SizeRun& run) {
   return stats.toJson();
 }
 
+// The same with the fog's scattered light on the surfaces (render/fog_light.hpp: [glow] on, its
+// `surfaces` key): its table and the profiles' annulus maps are built by a first frame outside
+// the timing (they are built once per phase function and profile).
+json surfaceCpuFogLightStage(SizeRun& run) {
+  Scene scene = run.scene;
+  scene.effects.glow.enabled = true;
+  scene.effects.glow.surfaces = true;
+  StageStats stats;
+  SurfaceShader shader;
+  kernels::ShadeFrame frame;
+  SurfaceBuffers out;
+  const auto t0 = Clock::now();
+  shader.render(scene, frame, out, &run.pool);
+  const double firstMs = msSince(t0);
+  if (frame.fog_light.table == nullptr) return {{"available", false}, {"note", "no multiple-scattering table for the fog"}};
+  for (int f = 0; f < run.o.frames; ++f) {
+    const auto t1 = Clock::now();
+    shader.render(scene, frame, out, &run.pool);
+    stats.ms.push_back(msSince(t1));
+  }
+  json j = stats.toJson();
+  j["available"] = true;
+  j["first_frame_ms"] = firstMs;
+  return j;
+}
+
 // GL surface pass (fogbeam_gl, EGL): the whole render() call (upload, draw, PBO readback)
 // and, from its own counters, the GPU draw time and the readback time. When it works, the
 // stages below use its buffers, as `fogbeam render` does.
@@ -673,6 +699,7 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   json& stages = r["stages"];
   stages["surface_cpu_planes"] = surfaceCpuStage(run);
   stages["surface_cpu_fast"] = surfaceCpuFastStage(run);
+  stages["surface_cpu_fog_light"] = surfaceCpuFogLightStage(run);
   stages["surface_gl"] = surfaceGlStage(run);
   stages["airlight_first_frame"] = airlightFirstFrameStage(run);
   stages["airlight_subsampled"] = airlightSubsampledStage(run);
@@ -745,6 +772,12 @@ void printSize(const json& r) {
   const json& s = r["stages"];
   std::printf("\n%d x %d (%.0f pixels)       median       [min – max]\n", w, h, n);
   printStage("surface CPU (SIMD, no GL)", s["surface_cpu_fast"], "  planes + bonnet: the fallback");
+  if (s["surface_cpu_fog_light"].value("available", false)) {
+    char note[160];
+    std::snprintf(note, sizeof note, "  with the fog's light on the surfaces (first frame, its tables: %.0f ms)",
+                  s["surface_cpu_fog_light"]["first_frame_ms"].get<double>());
+    printStage("surface CPU + fog light", s["surface_cpu_fog_light"], note);
+  }
   printStage("surface CPU planes (double)", s["surface_cpu_planes"], "  the oracle");
   if (s["surface_gl"]["available"].get<bool>()) {
     printStage("surface GL: render() total", s["surface_gl"]["total"]);

@@ -96,6 +96,8 @@ int runRender(const RenderOptions& o) {
   SceneEffects fx = scene->effects;
   fx.glow.enabled = switchOf(o.glow, fx.glow.enabled);
   fx.glare.enabled = switchOf(o.glare, fx.glare.enabled);
+  fx.glow.surfaces = switchOf(o.fogLight, fx.glow.surfaces);
+  scene->effects.glow = fx.glow;  // the surface pass reads the fog light's switch from the scene
   if (!o.airlightDevice.empty()) fx.render.airlight = o.airlightDevice == "gpu" ? AirlightDevice::Gpu : AirlightDevice::Cpu;
   const bool gpuAirlight = fx.render.airlight == AirlightDevice::Gpu;
   if (gpuAirlight && *method != AirlightMethod::Accurate) {

@@ -41,6 +41,7 @@ struct RenderOptions {
   unsigned threads = 0;
   // Issue 7's additions; empty (default): as the scene's [glow], [glare], [render] say.
   std::string glow;            ///< --glow: on | off
+  std::string fogLight;        ///< --fog-light: on | off
   std::string glare;           ///< --glare: on | off
   std::string airlightDevice;  ///< --airlight: cpu | gpu
   /// True when --method was given (not only defaulted): the GPU airlight path, accurate only,

@@ -12,6 +12,7 @@
 #include <fogbeam/physics/validation.hpp>
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/render/surface.hpp>
 
@@ -320,7 +321,7 @@ bool validateSurfaceScattering(int samples) {
   std::printf("\nscattered light on the road (issue 18): irradiance from the fog's scattered light (path tracer, %d paths "
               "per point, road rho 0.1, HG 0.85) against the direct irradiance\n", samples);
   std::printf("    %-36s %6s %11s %11s %19s %19s %16s %14s\n", "lamp, fog", "x m", "E direct", "fb order 1",
-              "PT order 1", "PT orders >= 2", "scattered/direct", "tables/PT");
+              "PT order 1", "PT orders >= 2", "scattered/direct", "fog light/PT");
   auto pool = std::make_shared<ThreadPool>(0);
   bool ok = true;
   std::uint64_t seed = 2300;
@@ -330,7 +331,10 @@ bool validateSurfaceScattering(int samples) {
     fog.phase = HenyeyGreensteinPhase{0.85};
     auto pt = PathTracer::build({c.lamp}, fog, GroundPlane{0.0, 0.1});
     const auto ms = shippedMultipleScatteringTable(fog.phase);
-    const auto iso = kernels::IsoTable::get(fog.phase);
+    auto fogTable = FogLightTable::get(ms, fog.phase, fog.albedo, pool.get());
+    std::shared_ptr<const AnnulusMeanMap> map;
+    if (fogTable && !std::holds_alternative<IsotropicProfile>(c.lamp.profile->model()))
+      map = AnnulusMeanMap::build(*c.lamp.profile, (*fogTable)->edges(), false, pool.get());
     auto ev = AirlightEvaluator::build(c.lamp, fog, AirlightMethod::Accurate, AirlightOptions{});
     if (!pt || !ev) {
       std::printf("  %s: %s\n", c.name.c_str(), (!pt ? pt.error() : ev.error()).message.c_str());
@@ -361,16 +365,18 @@ bool validateSurfaceScattering(int samples) {
       const double fb1 = kPi * est[k].rgb.x;
       const bool plumb = std::abs(e1 - fb1) <= 3.0 * e1se + 0.01 * fb1;
       ok = ok && plumb;
-      // The infinite-fog model (scatteredIrradiance, isotropic sources only) against the path
-      // tracer's order 1 + orders ≥ 2 over the road.
+      // The surface layer's fog light (render/fog_light.hpp: the zonal table, the lamp's annulus
+      // means) against the path tracer's order 1 + orders ≥ 2 over the road.
       std::string model = "-";
-      if (std::holds_alternative<IsotropicProfile>(c.lamp.profile->model()) && ms && iso) {
-        if (auto m = scatteredIrradiance(*ms, *iso, fog, R, d.z / R)) {
-          char b[48];
-          const double q = I * (m->single + m->multiple) / (e1 + e2);
-          std::snprintf(b, sizeof b, "%.3f +- %.3f", q, q * std::hypot(e1se, e2se) / (e1 + e2));
-          model = b;
-        }
+      if (fogTable) {
+        std::vector<double> means((*fogTable)->bins(), I);
+        if (map) map->lookup(glm::transpose(c.lamp.worldFromLamp) * (-d / R), means.data());
+        const double kt = fog.extinction_per_m;
+        const double m = kt * kt * (*fogTable)->irradiance(kt * R, d.z / R, means.data());
+        char b[48];
+        const double q = m / (e1 + e2);
+        std::snprintf(b, sizeof b, "%.3f +- %.3f", q, q * std::hypot(e1se, e2se) / (e1 + e2));
+        model = b;
       }
       std::printf("    %-36s %6.0f %11.4g %11.4g %11.4g +- %-5.2g %11.4g +- %-5.2g %9.3f +- %-5.3f %14s%s\n",
                   c.name.c_str(), c.along_m[k], eDirect, fb1, e1, e1se, e2, e2se,

@@ -144,6 +144,10 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--glare", o->glare,
                   "driver's disability glare (CIE 146 veiling luminance): on | off (default: the scene's [glare])")
       ->check(CLI::IsMember({"on", "off"}));
+  sub->add_option("--fog-light", o->fogLight,
+                  "the fog's scattered light on the surfaces (with the glow on; where the CPU lights the surfaces): "
+                  "on | off (default: the scene's [glow] surfaces)")
+      ->check(CLI::IsMember({"on", "off"}));
   sub->add_option("--airlight", o->airlightDevice,
                   "where the airlight is computed: cpu (tables, SIMD, subsampling) | gpu (accurate method in GLSL in the "
                   "surface pass) (default: the scene's [render] airlight, else cpu)")

@@ -261,6 +261,7 @@ struct ChannelRenderer::Impl {
   /// key's fog and bending.
   Scene sceneFor(const VehiclePose& pose, const TableKey& key) const {
     Scene s = world;
+    s.effects = config->effects;  // the service's [glow] (its `surfaces`: the surface pass's fog light), [glare], [render]
     s.fog = mediumFrom(key.fog);
     const Mat3& R = pose.R;
     const Vec3& O = pose.O;

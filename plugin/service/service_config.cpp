@@ -559,7 +559,7 @@ std::string toToml(const ServiceConfig& c) {
     << "\noverlap_frames = " << quoted(c.overlap_frames) << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
     << "\ngpu_pieces = " << c.effects.render.gpu_pieces << "\n";
   o << "\n[glow]\nenabled = " << flag(c.effects.glow.enabled) << "\nmodel = \"" << toString(c.effects.glow.model)
-    << "\"\nfade_in = " << num(c.effects.glow.fade_in) << "\n";
+    << "\"\nfade_in = " << num(c.effects.glow.fade_in) << "\nsurfaces = " << flag(c.effects.glow.surfaces) << "\n";
   o << "\n[glare]\nenabled = " << flag(c.effects.glare.enabled) << "\nage_years = " << num(c.effects.glare.age_years)
     << "\npigmentation = " << num(c.effects.glare.pigmentation) << "\n";
   o << "\n[timing]\nmode = " << quoted(c.lock_step ? "lock-step" : "free-running") << "\nrate_hz = " << num(c.rate_hz)

@@ -192,12 +192,20 @@ TEST(ChannelRendererEffects, TableGlowPeaksAtTheLampAndFallsAwayFromIt) {
   ASSERT_NE(nearLamp, nullptr);
   EXPECT_LT(nearLamp->optical_distance, 1.1);
   EXPECT_GT(sum(near.layers.glow), 0.0);
+  // The composite is the frame without the glow plus the glow layer, and plus what the glow's
+  // fog light ([glow] surfaces, on by default) adds to the surface layer: never darker there.
   RenderedFrame g;
   ASSERT_TRUE(renderWithoutGlow(cfg, world, g));
+  double fogLight = 0.0;
   for (std::size_t k = 0; k < g.layers.composite.size(); ++k) {
-    const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]);
+    const double added = static_cast<double>(f.layers.surface[k]) - static_cast<double>(g.layers.surface[k]);
+    ASSERT_GE(added, -1e-5 * (1.0 + static_cast<double>(g.layers.surface[k]))) << k;
+    fogLight += added;
+    const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]) + added;
     ASSERT_NEAR(f.layers.composite[k], want, 1e-4 * std::max(want, 1e-3)) << k;
   }
+  std::printf("  fog light on the surfaces: %.4g cd/m2 summed over the frame's channels (glow layer %.4g)\n", fogLight,
+              sum(f.layers.glow));
 }
 
 TEST(ChannelRendererEffects, ApsfGlowSurroundsAVisibleLampAndAddsToTheComposite) {
@@ -246,7 +254,9 @@ TEST(ChannelRendererEffects, ApsfGlowSurroundsAVisibleLampAndAddsToTheComposite)
   ASSERT_TRUE(renderWithoutGlow(cfg, world, g));
   double worst = 0.0;
   for (std::size_t k = 0; k < g.layers.composite.size(); ++k) {
-    const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]);
+    // Plus the fog light the glow adds to the surface layer ([glow] surfaces, on by default).
+    const double added = static_cast<double>(f.layers.surface[k]) - static_cast<double>(g.layers.surface[k]);
+    const double want = static_cast<double>(g.layers.composite[k]) + static_cast<double>(f.layers.glow[k]) + added;
     worst = std::max(worst, std::abs(static_cast<double>(f.layers.composite[k]) - want) / std::max(want, 1e-6));
     EXPECT_NEAR(f.layers.overlay[k], g.layers.overlay[k] + f.layers.glow[k], 1e-5f * (1.0f + f.layers.overlay[k]));
   }

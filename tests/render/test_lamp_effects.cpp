@@ -14,6 +14,8 @@
 #include "test_scale.hpp"
 
 
+#include "test_media.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -27,13 +29,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-Medium hgFog(double kt, double albedo = 1.0, double g = 0.85) {
-  Medium m;
-  m.extinction_per_m = kt;
-  m.albedo = albedo;
-  m.phase = makeHenyeyGreenstein(g).value();
-  return m;
-}
+using test::hgFog;
 
 Lamp isotropicAt(const Vec3& p, double cd) {
   Lamp l;

@@ -386,7 +386,7 @@ struct GlSurfacePass::Impl {
     drawSurfaces(scene, timers.surface, nothingDrawn);
     if (airlight.enabled())
       airlight.draw(scene, {lamps.profileTexture(), distanceTex.get(), emptyVao.get(), timers.airlight});
-    if (cpuShading) shader.prepare(scene, shadeFrames.emplace_back());  // in step with the ring's slots
+    if (cpuShading) shader.prepare(scene, shadeFrames.emplace_back(), shadePool.get());  // in step with the ring's slots
     readback.endFrame({fbo.get(), cpuShading, nothingDrawn, airlight.enabled() ? airlight.framebuffer() : 0u,
                        cam.width, cam.height, static_cast<std::size_t>(meshVertexCount) / 3});
     if (std::string e = gl::glErrors("surface pass draw/readback"); !e.empty()) return Error{e};

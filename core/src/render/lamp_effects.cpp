@@ -4,6 +4,8 @@
 #include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 
+#include "glow_quadrature.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -29,26 +31,13 @@ double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-// ∫ f(θ) dθ over the nodes θ_i of a glow curve: the trapezoid rule, the first interval [0, θ₁]
-// as f(θ₁) θ₁ (f carries L sin θ, which tends to a constant as θ → 0: S₁ ∝ 1/h). f(i) is the
-// integrand at node i. Shared by the flux (fluxOver) and the scattered irradiance on a surface.
-template <class F>
-double integrateFromApex(const std::vector<double>& theta, F&& f) {
-  double sum = theta.size() > 1 ? f(std::size_t{1}) * theta[1] : 0.0;
-  for (std::size_t i = 2; i < theta.size(); ++i) sum += 0.5 * (f(i - 1) + f(i)) * (theta[i] - theta[i - 1]);
-  return sum;
-}
+using glow_quadrature::glowNodeAngle;
+using glow_quadrature::integrateFromApex;
 
 // Φ[L] R² / (2π) pieces: 2π ∫ L cos θ sin θ dθ (integrateFromApex).
 double fluxOver(const std::vector<double>& theta, const std::vector<double>& L) {
   return 2.0 * kPi *
          integrateFromApex(theta, [&](std::size_t i) { return L[i] * std::cos(theta[i]) * std::sin(theta[i]); });
-}
-
-// θ_i = 2 asin((i / (n − 1))²) (GlowCurve).
-double glowNodeAngle(std::size_t i, std::size_t n) {
-  const double u = static_cast<double>(i) / static_cast<double>(n - 1);
-  return 2.0 * std::asin(std::min(u * u, 1.0));
 }
 
 // S₁ for the sky ray at θ from an isotropic source of 1 cd at R (eq. 3 with the F table, Ω = 1):
@@ -220,6 +209,31 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
   return sum / (kBands * kAzimuths);
 }
 
+void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges, std::size_t bins, double* out,
+                  bool frontOnly, int narrowBands) {
+  const Vec3 helper = std::abs(axis.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
+  const Vec3 u = glm::normalize(glm::cross(axis, helper)), v = glm::cross(axis, u);
+  // Equal solid angles within each annulus: 4 bands uniform in cos η (`narrowBands` for annuli
+  // narrower than 10°) × 24 azimuths (staggered), one sample at each cell's middle.
+  constexpr int kAzimuths = 24;
+  constexpr double kNarrow = 10.0 * kPi / 180.0;
+  for (std::size_t k = 0; k < bins; ++k) {
+    const double c0 = std::cos(edges[k]), c1 = std::cos(edges[k + 1]);
+    const int bands = edges[k + 1] - edges[k] < kNarrow ? narrowBands : 4;
+    double sum = 0.0;
+    for (int b = 0; b < bands; ++b) {
+      const double c = c0 + (static_cast<double>(b) + 0.5) / bands * (c1 - c0);
+      const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
+      for (int a = 0; a < kAzimuths; ++a) {
+        const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
+        const Vec3 w = c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v);
+        if (!frontOnly || w.x >= 0.0) sum += profile.intensity(w);
+      }
+    }
+    out[k] = sum / (bands * kAzimuths);
+  }
+}
+
 void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out,
                       bool frontOnly) {
   const Vec3 d = eye - lamp.position_m;
@@ -227,26 +241,7 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
   for (std::size_t k = 0; k < bins; ++k) out[k] = 0.0;
   if (!(len > 0.0)) return;
   const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);
-  const Vec3 axis = lampFromWorld * (d / len);  // towards the eye, lamp frame
-  const Vec3 helper = std::abs(axis.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
-  const Vec3 u = glm::normalize(glm::cross(axis, helper)), v = glm::cross(axis, u);
-  // Equal solid angles within each annulus: 4 bands uniform in cos η × 24 azimuths (staggered),
-  // one sample at each cell's middle.
-  constexpr int kBands = 4, kAzimuths = 24;
-  for (std::size_t k = 0; k < bins; ++k) {
-    const double c0 = std::cos(edges[k]), c1 = std::cos(edges[k + 1]);
-    double sum = 0.0;
-    for (int b = 0; b < kBands; ++b) {
-      const double c = c0 + (static_cast<double>(b) + 0.5) / kBands * (c1 - c0);
-      const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
-      for (int a = 0; a < kAzimuths; ++a) {
-        const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
-        const Vec3 w = c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v);
-        if (!frontOnly || w.x >= 0.0) sum += lamp.profile->intensity(w);
-      }
-    }
-    out[k] = sum / (kBands * kAzimuths);
-  }
+  annulusMeans(*lamp.profile, lampFromWorld * (d / len), edges, bins, out, frontOnly);  // axis: towards the eye
 }
 
 struct LampEffects::Tables {

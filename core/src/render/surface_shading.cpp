@@ -2,10 +2,13 @@
 // the frame's lamps and profiles in float, and the rows spread over threads. The SIMD kernel is in
 // surface_shading_simd.cpp.
 #include <fogbeam/render/surface_shading.hpp>
+
+#include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/util/overloaded.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <variant>
 
@@ -106,7 +109,45 @@ const kernels::ShadeTable* SurfaceShader::tableFor(const std::shared_ptr<const P
   return &tables_.back()->view;
 }
 
-void SurfaceShader::prepare(const Scene& scene, kernels::ShadeFrame& frame) {
+void SurfaceShader::prepareFogLight(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool) {
+  FogLightFrame& f = frame.fog_light;
+  f.table = nullptr;
+  f.lamps.clear();
+  const GlowOptions& glow = scene.effects.glow;
+  if (!glow.enabled || !glow.surfaces || !(scene.fog.albedo > 0.0) || !(scene.fog.extinction_per_m > 0.0)) return;
+  const auto ms = shippedMultipleScatteringTable(scene.fog.phase);
+  if (!ms) return;  // no table for this phase function: no fog light (docs/airlight.md)
+  auto table = FogLightTable::get(ms, scene.fog.phase, scene.fog.albedo, pool);
+  if (!table) return;
+  fogTable_ = std::move(table).value();
+  f.table = fogTable_.get();
+  f.extinction = scene.fog.extinction_per_m;
+  const Camera& cam = scene.camera;
+  f.lamps.resize(scene.lamps.size());
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const Lamp& l = scene.lamps[i].lamp;
+    FogLightFrame::Lamp& k = f.lamps[i];
+    k.pos = l.position_m - cam.position_m;
+    k.lampFromWorld = glm::transpose(l.worldFromLamp);
+    k.map = nullptr;
+    k.i0 = 0.0;
+    if (const auto* iso = std::get_if<IsotropicProfile>(&l.profile->model())) {
+      k.i0 = iso->intensity_cd;
+      continue;
+    }
+    // The driver's own lamps light the fog forward of the car only (as their glow).
+    const bool front = scene.lamps[i].mount == LampMount::Vehicle;
+    auto it = std::find_if(fogMaps_.begin(), fogMaps_.end(),
+                           [&](const FogMap& m) { return m.profile == l.profile && m.frontOnly == front; });
+    if (it == fogMaps_.end()) {
+      fogMaps_.push_back(FogMap{l.profile, front, AnnulusMeanMap::build(*l.profile, fogTable_->edges(), front, pool)});
+      it = std::prev(fogMaps_.end());
+    }
+    k.map = it->map.get();
+  }
+}
+
+void SurfaceShader::prepare(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool) {
   const Camera& cam = scene.camera;
   frame.width = cam.width;
   frame.height = cam.height;
@@ -177,7 +218,311 @@ void SurfaceShader::prepare(const Scene& scene, kernels::ShadeFrame& frame) {
                },
                l.profile->model());
   }
+  prepareFogLight(scene, frame, pool);
 }
+
+namespace {
+
+// The fog light (render/fog_light.hpp) over a band of kFogTile rows, lamp by lamp: an adaptive
+// grid of nodes where the lamp's coefficients are evaluated (fogLightLamp at the surface point the
+// pixel sees), blended in between. Each lamp has its own grid: a street lamp's light on the road
+// is smooth where a low beam's, near its cut-off, needs a node every few pixels. Cells start at
+// kFogTile pixels and are halved down to 2 px until
+//   * the cell's pixels are on one surface: their inverse distances the corners' bilinear blend
+//     within kFogSameSurface (on a plane 1/depth is linear over the image; a silhouette breaks
+//     that), and
+//   * at the centre and the middles of the edges, evaluated, the corners' blend (as blend()
+//     weighs them) gives the lamp's irradiance facing it (s0 + s1 + s2 + s3) and edge-on to it
+//     (s1 − s3/2) within kFogTolerance of itself, or within the floor the eye cannot see there.
+// Beyond kFogFar mean free paths the blend is not judged (the eye sees less than e^{−7} of it).
+// A 2 px cell that still fails is evaluated pixel by pixel. Rows of the band's coefficients are
+// laid out as shadeRow reads them.
+constexpr int kFogTile = 16;
+
+// The camera-relative point at distance d along pixel (i, j)'s ray (Camera::rayDirection).
+Vec3 pixelPoint(const kernels::ShadeFrame& f, double i, double j, double d) {
+  const double lx = f.cx - (i + 0.5), ly = f.cy - (j + 0.5);
+  const double* R = f.world_from_camera;
+  const Vec3 o{R[0] * f.focal + R[3] * lx + R[6] * ly, R[1] * f.focal + R[4] * lx + R[7] * ly,
+               R[2] * f.focal + R[5] * lx + R[8] * ly};
+  return glm::normalize(o) * d;
+}
+
+constexpr float kFogSameSurface = 0.02f, kFogFar = 7.0f, kFogTolerance = 0.01f;
+
+// A thread's storage for its tiles (kept between frames: a steady frame allocates nothing).
+struct FogTileScratch {
+  std::vector<float> d;              // the band's pixel distances (m)
+  std::vector<float> s, nd;          // per node: the lamp's 4 coefficients; its distance
+  std::vector<std::uint32_t> stamp;  // per pixel: the (lamp, band) its node index belongs to
+  std::vector<std::int32_t> nodeAt;  // per pixel: its node (valid where stamp matches)
+  std::vector<float> w;              // a cell row's blend weights
+  std::uint32_t current = 0;
+};
+
+class FogTile {
+ public:
+  // `floor`: the fog light's error the eye cannot see, lux as seen through the fog (shade()).
+  FogTile(const kernels::ShadeFrame& frame, const SurfaceGBufferView& g, std::size_t stride, float floor,
+          FogTileScratch& scratch)
+      : f_(frame), g_(g), w_(g.width), h_(g.height), nq_(4 * frame.fog_light.lamps.size()), stride_(stride),
+        mfp_(1.0f / static_cast<float>(frame.fog_light.extinction)), floor_(floor), sc_(scratch) {}
+
+  // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom): their planes (for shadeRow) and fog light.
+  void fill(int j0, std::vector<float>& planeT, std::vector<std::int32_t>& planeIndex, std::vector<float>& rows) {
+    j0_ = j0;
+    yEnd_ = std::min(j0 + kFogTile, h_ - 1);  // the band's last node row (the next band's first)
+    const int nRows = yEnd_ - j0 + 1;
+    const auto W = static_cast<std::size_t>(w_);
+    planeT.resize(static_cast<std::size_t>(nRows) * W);
+    planeIndex.resize(planeT.size());
+    sc_.d.resize(planeT.size());
+    if (sc_.stamp.size() < planeT.size()) {
+      sc_.stamp.assign(planeT.size(), 0);
+      sc_.nodeAt.resize(planeT.size());
+      sc_.current = 0;
+    }
+    rows.resize(static_cast<std::size_t>(kFogTile) * nq_ * stride_);
+    rows_ = rows.data();
+    for (int y = j0; y <= yEnd_; ++y) {
+      const std::size_t r = static_cast<std::size_t>(y - j0) * W;
+      kernels::castPlanesRow(f_, y, w_, planeT.data() + r, planeIndex.data() + r);
+      const std::size_t src = g_.bottom_up ? static_cast<std::size_t>(h_ - 1 - y) : static_cast<std::size_t>(y);
+      for (std::size_t x = 0; x < W; ++x) {
+        const float gd = g_.distance != nullptr ? g_.distance[W * src + x] : std::numeric_limits<float>::infinity();
+        sc_.d[r + x] = std::min(gd, planeT[r + x]);
+      }
+    }
+    // One grid for all lamps (a node's cost is mostly its look-ups; grids per lamp repeat the
+    // silhouettes' refinement for each lamp and cost more on the bench scene).
+    const std::size_t L = f_.fog_light.lamps.size();
+    for (std::size_t g0 = 0; g0 < L; g0 = g1_) {
+      g0_ = g0;
+      g1_ = L;
+      if (++sc_.current == 0) {  // the stamps wrapped: start them again
+        std::fill(sc_.stamp.begin(), sc_.stamp.end(), 0u);
+        sc_.current = 1;
+      }
+      sc_.s.clear();
+      sc_.nd.clear();
+      if (f_.fog_light_exact) {
+        for (int y = j0; y < std::min(j0 + kFogTile, h_); ++y)
+          for (int x = 0; x < w_; ++x) put(x, y, node(x, y));
+        continue;
+      }
+      for (int xa = 0; xa < w_; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0, yEnd_);
+    }
+  }
+
+ private:
+  const kernels::ShadeFrame& f_;
+  const SurfaceGBufferView& g_;
+  int w_, h_;
+  std::size_t nq_, stride_;
+  float mfp_, floor_;
+  FogTileScratch& sc_;
+  int j0_ = 0, yEnd_ = 0;
+  std::size_t g0_ = 0, g1_ = 0;  // the lamps of the current grid
+  float* rows_ = nullptr;
+  [[nodiscard]] std::size_t nc() const { return 4 * (g1_ - g0_); }
+
+  [[nodiscard]] std::size_t pixel(int x, int y) const {
+    return static_cast<std::size_t>(y - j0_) * static_cast<std::size_t>(w_) + static_cast<std::size_t>(x);
+  }
+  [[nodiscard]] float dist(int x, int y) const { return sc_.d[pixel(x, y)]; }
+  // The node at pixel (x, y) of the current lamp: its index (evaluated on first use).
+  std::size_t node(int x, int y) {
+    const std::size_t p = pixel(x, y);
+    if (sc_.stamp[p] == sc_.current) return static_cast<std::size_t>(sc_.nodeAt[p]);
+    sc_.stamp[p] = sc_.current;
+    const std::size_t n = sc_.nd.size();
+    sc_.nodeAt[p] = static_cast<std::int32_t>(n);
+    sc_.s.resize(nc() * (n + 1));
+    const float d = dist(x, y);
+    float* c = sc_.s.data() + nc() * n;
+    if (std::isfinite(d)) {
+      const Vec3 p3 = pixelPoint(f_, x, y, d);
+      for (std::size_t l = g0_; l < g1_; ++l) fogLightLamp(f_.fog_light, l, p3, c + 4 * (l - g0_));
+    } else {
+      std::fill(c, c + nc(), 0.0f);
+    }
+    sc_.nd.push_back(d);
+    return n;
+  }
+  [[nodiscard]] const float* coef(std::size_t n) const { return sc_.s.data() + nc() * n; }
+  [[nodiscard]] float nodeDistance(std::size_t n) const { return sc_.nd[n]; }
+  float* out(int x, int y, std::size_t q) {
+    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + 4 * g0_ + q) * stride_ + static_cast<std::size_t>(x);
+  }
+  void put(int x, int y, std::size_t n) {
+    const float* c = coef(n);
+    for (std::size_t q = 0; q < nc(); ++q) *out(x, y, q) = c[q];
+  }
+
+  void cell(int xa, int xb, int ya, int yb) {
+    const bool lastX = xb == w_ - 1, lastY = yb == h_ - 1;
+    const int xEnd = lastX ? xb + 1 : xb, yStop = std::min(lastY ? yb + 1 : yb, j0_ + kFogTile);
+    if (xEnd <= xa || yStop <= ya) return;
+    if (xb == xa || yb == ya) {  // a one-pixel-wide strip at the image's edge
+      pixels(xa, xEnd, ya, yStop);
+      return;
+    }
+    bool anySurface = false;  // a cell of sky only: nothing to light
+    for (int y = ya; y <= yb && !anySurface; ++y)
+      for (int x = xa; x <= xb && !anySurface; ++x) anySurface = std::isfinite(dist(x, y));
+    if (!anySurface) return;  // shadeRow lights no sky pixel: its coefficients are never read
+    const std::size_t k[4] = {node(xa, ya), node(xb, ya), node(xa, yb), node(xb, yb)};
+    bool clean = std::isfinite(nodeDistance(k[0])) && std::isfinite(nodeDistance(k[1])) &&
+                 std::isfinite(nodeDistance(k[2])) && std::isfinite(nodeDistance(k[3]));
+    if (clean) {  // one surface
+      const float i0 = 1.0f / nodeDistance(k[0]), i1 = 1.0f / nodeDistance(k[1]), i2 = 1.0f / nodeDistance(k[2]),
+                  i3 = 1.0f / nodeDistance(k[3]);
+      const float invX = 1.0f / static_cast<float>(xb - xa), invY = 1.0f / static_cast<float>(yb - ya);
+      for (int y = ya; y <= yb && clean; ++y) {
+        const float t = static_cast<float>(y - ya) * invY;
+        const float a = i0 + t * (i2 - i0), b = i1 + t * (i3 - i1);
+        for (int x = xa; x <= xb && clean; ++x) {
+          const float d = dist(x, y);
+          const float want = a + static_cast<float>(x - xa) * invX * (b - a);
+          clean = !std::isfinite(d) || std::abs(want * d - 1.0f) <= kFogSameSurface;
+        }
+      }
+    }
+    const float nearest =
+        std::min(std::min(nodeDistance(k[0]), nodeDistance(k[1])), std::min(nodeDistance(k[2]), nodeDistance(k[3])));
+    if (clean && nearest < kFogFar * mfp_) {
+      // The centre and the middles of the edges (the children's corners if the cell splits; a
+      // smallest cell's own pixels).
+      const int xc = (xa + xb) / 2, yc = (ya + yb) / 2;
+      const int probe[5][2] = {{xc, yc}, {xc, ya}, {xc, yb}, {xa, yc}, {xb, yc}};
+      for (const auto& p : probe) {
+        if (!clean) break;
+        if (std::isfinite(dist(p[0], p[1]))) clean = predicts(k, xa, xb, ya, yb, p[0], p[1]);
+      }
+    }
+    if (clean) {
+      blend(xa, xb, ya, yb, xEnd, yStop, k);
+      return;
+    }
+    if (xb - xa <= 2 && yb - ya <= 2) {
+      pixels(xa, xEnd, ya, yStop);
+      return;
+    }
+    const int xm = xb - xa > 2 ? (xa + xb) / 2 : xb, ym = yb - ya > 2 ? (ya + yb) / 2 : yb;
+    cell(xa, xm, ya, ym);
+    if (xm < xb) cell(xm, xb, ya, ym);
+    if (ym < yb) {
+      cell(xa, xm, ym, yb);
+      if (xm < xb) cell(xm, xb, ym, yb);
+    }
+  }
+
+  // The corners' perspective-correct bilinear weights at (x, y) (blend()).
+  void weights(const std::size_t (&k)[4], int xa, int xb, int ya, int yb, int x, int y, float (&wt)[4]) const {
+    const float u = static_cast<float>(x - xa) / static_cast<float>(xb - xa);
+    const float t = static_cast<float>(y - ya) / static_cast<float>(yb - ya);
+    wt[0] = (1 - u) * (1 - t) / nodeDistance(k[0]);
+    wt[1] = u * (1 - t) / nodeDistance(k[1]);
+    wt[2] = (1 - u) * t / nodeDistance(k[2]);
+    wt[3] = u * t / nodeDistance(k[3]);
+    const float norm = 1.0f / (wt[0] + wt[1] + wt[2] + wt[3]);
+    for (float& v : wt) v *= norm;
+  }
+
+  // Whether the corners' blend gives the node at (x, y) within the tolerance (class comment),
+  // summed over the grid's lamps.
+  bool predicts(const std::size_t (&k)[4], int xa, int xb, int ya, int yb, int x, int y) {
+    const std::size_t c = node(x, y);
+    float wt[4];
+    weights(k, xa, xb, ya, yb, x, y, wt);
+    float miss1 = 0.0f, total1 = 0.0f, miss0 = 0.0f, total0 = 0.0f;
+    for (std::size_t l = 0; l < nc(); l += 4) {
+      float pred[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+      for (std::size_t q = 0; q < 4; ++q)
+        for (int i = 0; i < 4; ++i) pred[q] += wt[i] * coef(k[i])[l + q];
+      const float* v = coef(c) + l;
+      const float e1 = v[0] + v[1] + v[2] + v[3], p1 = pred[0] + pred[1] + pred[2] + pred[3];
+      const float e0 = v[1] - 0.5f * v[3], p0 = pred[1] - 0.5f * pred[3];
+      miss1 += std::abs(p1 - e1);
+      total1 += std::abs(e1);
+      miss0 += std::abs(p0 - e0);
+      total0 += std::abs(e0);
+    }
+    // What the eye sees of a miss at distance d is e^{−K_t d} of it: the floor, seen there.
+    const float floor = floor_ * std::exp(std::min(nodeDistance(c) / mfp_, 80.0f));
+    return miss1 <= kFogTolerance * total1 + floor && miss0 <= kFogTolerance * total0 + floor;
+  }
+
+  // Bilinear over [xa, xEnd) × [ya, yStop), perspective-correct: the weights of the corners
+  // divided by their distances and renormalised (on a plane 1/depth is linear over the image, so
+  // this is linear interpolation over the surface, as a rasteriser interpolates attributes; near
+  // the horizon a cell spans tens of metres of road, most of them in its top rows).
+  void blend(int xa, int xb, int ya, int yb, int xEnd, int yStop, const std::size_t (&k)[4]) {
+    // Σ w_i s_i / d_i over Σ w_i / d_i, both bilinear (separable): per pixel one lerp and one
+    // product per coefficient, and one division per pixel.
+    const float invX = 1.0f / static_cast<float>(xb - xa), invY = 1.0f / static_cast<float>(yb - ya);
+    float id[4];
+    for (int i = 0; i < 4; ++i) id[i] = 1.0f / nodeDistance(k[i]);
+    const int n = xEnd - xa;
+    sc_.w.resize(static_cast<std::size_t>(n));
+    float* R = sc_.w.data();
+    for (int y = ya; y < yStop; ++y) {
+      const float t = static_cast<float>(y - ya) * invY;
+      const float ia = id[0] + t * (id[2] - id[0]), ib = id[1] + t * (id[3] - id[1]);
+      const float di = (ib - ia) * invX;
+      for (int x = 0; x < n; ++x) R[x] = 1.0f / (ia + static_cast<float>(x) * di);
+      for (std::size_t q = 0; q < nc(); ++q) {
+        const float a0 = coef(k[0])[q] * id[0], a1 = coef(k[1])[q] * id[1], a2 = coef(k[2])[q] * id[2],
+                    a3 = coef(k[3])[q] * id[3];
+        const float A = a0 + t * (a2 - a0), B = a1 + t * (a3 - a1), dq = (B - A) * invX;
+        float* o = out(xa, y, q);
+        for (int x = 0; x < n; ++x) o[x] = (A + static_cast<float>(x) * dq) * R[x];
+      }
+    }
+  }
+
+  // Pixel by pixel: each pixel's own coefficients (a smallest cell across a silhouette, or where
+  // the light bends too fast for the blend).
+  void pixels(int xa, int xEnd, int ya, int yStop) {
+    for (int y = ya; y < yStop; ++y)
+      for (int x = xa; x < xEnd; ++x) {
+        if (std::isfinite(dist(x, y))) put(x, y, node(x, y));  // sky pixels: never read
+      }
+  }
+};
+
+// The fog light's error the eye cannot see (lux, as seen through the fog: E e^{−K_t d}): 1e-3 of
+// the largest the frame shows (Σ over lamps of E facing them, estimated on a sparse grid, every
+// 64th pixel). Cells whose error stays below it are not refined: near the horizon, where a
+// pixel row spans metres of road, the surfaces' light is a vanishing part of the image.
+float fogLightFloor(const kernels::ShadeFrame& frame, const SurfaceGBufferView& g) {
+  constexpr int kSparse = 64;
+  thread_local std::vector<float> planeT, coef;
+  thread_local std::vector<std::int32_t> planeIndex;
+  const auto W = static_cast<std::size_t>(g.width);
+  planeT.resize(W);
+  planeIndex.resize(W);
+  coef.resize(4 * frame.fog_light.lamps.size());
+  const float kt = static_cast<float>(frame.fog_light.extinction);
+  float largest = 0.0f;
+  for (int y = kSparse / 2; y < g.height; y += kSparse) {
+    kernels::castPlanesRow(frame, y, g.width, planeT.data(), planeIndex.data());
+    const std::size_t src = g.bottom_up ? static_cast<std::size_t>(g.height - 1 - y) : static_cast<std::size_t>(y);
+    for (int x = kSparse / 2; x < g.width; x += kSparse) {
+      const auto xi = static_cast<std::size_t>(x);
+      const float gd = g.distance != nullptr ? g.distance[W * src + xi] : std::numeric_limits<float>::infinity();
+      const float d = std::min(gd, planeT[xi]);
+      if (!std::isfinite(d)) continue;
+      fogLightCoefficients(frame.fog_light, pixelPoint(frame, x, y, d), coef.data());
+      float e = 0.0f;
+      for (std::size_t q = 0; q < coef.size(); ++q) e += coef[q];
+      largest = std::max(largest, e * std::exp(-kt * d));
+    }
+  }
+  return 1e-3f * largest;
+}
+
+}  // namespace
 
 void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBufferView& g, SurfaceBuffers& out,
                           ThreadPool* pool) const {
@@ -186,25 +531,35 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
   out.height = g.height;
   out.rgb.resize(3 * w * h);
   out.distance.resize(w * h);
-  // Rows in bands of 8, a band per task: few enough tasks to hand out cheaply, enough of them
-  // (90 at 720 rows) to balance two to sixteen threads.
-  constexpr std::size_t kBand = 8;
-  const std::size_t bands = (h + kBand - 1) / kBand;
   const bool mesh = g.normal_rho_r != nullptr && g.rho_gb != nullptr && g.distance != nullptr;
+  const bool fog = frame.fog_light.table != nullptr && !frame.fog_light.lamps.empty() && w > 0 && h > 0;
+  // Rows in bands of 8 (16 with the fog light: its tiles), a band per task: few enough tasks to
+  // hand out cheaply, enough of them (45–90 at 720 rows) to balance two to sixteen threads.
+  const std::size_t kBand = fog ? static_cast<std::size_t>(kFogTile) : 8;
+  const std::size_t bands = (h + kBand - 1) / kBand;
+  const std::size_t nq = 4 * frame.fog_light.lamps.size(), stride = w + 64;
+  const float floor = fog && !frame.fog_light_exact ? fogLightFloor(frame, g) : 0.0f;
   auto band = [&](std::size_t b) {
-    // The planes' distances and indices of one row (sized once per thread).
-    thread_local std::vector<float> planeT;
+    // The planes' distances and indices of the band's rows, and its fog light (sized once per thread).
+    thread_local std::vector<float> planeT, rows;
     thread_local std::vector<std::int32_t> planeIndex;
-    if (planeT.size() < w) {
+    thread_local FogTileScratch scratch;
+    const std::size_t j0 = b * kBand, j1 = std::min(h, (b + 1) * kBand);
+    if (fog) {
+      FogTile tile(frame, g, stride, floor, scratch);
+      tile.fill(static_cast<int>(j0), planeT, planeIndex, rows);
+    } else if (planeT.size() < w) {
       planeT.resize(w);
       planeIndex.resize(w);
     }
-    for (std::size_t j = b * kBand; j < std::min(h, (b + 1) * kBand); ++j) {
+    for (std::size_t j = j0; j < j1; ++j) {
       const std::size_t src = g.bottom_up ? h - 1 - j : j;  // the G-buffer's row of image row j
-      kernels::castPlanesRow(frame, static_cast<int>(j), static_cast<int>(w), planeT.data(), planeIndex.data());
+      const std::size_t r = fog ? (j - j0) * w : 0;          // the band's row of planes
+      if (!fog) kernels::castPlanesRow(frame, static_cast<int>(j), static_cast<int>(w), planeT.data(), planeIndex.data());
       kernels::shadeRow(frame, static_cast<int>(j), static_cast<int>(w), mesh ? g.normal_rho_r + 4 * w * src : nullptr,
-                        mesh ? g.rho_gb + 2 * w * src : nullptr, mesh ? g.distance + w * src : nullptr, planeT.data(),
-                        planeIndex.data(), out.rgb.data() + 3 * w * j, out.distance.data() + w * j);
+                        mesh ? g.rho_gb + 2 * w * src : nullptr, mesh ? g.distance + w * src : nullptr, planeT.data() + r,
+                        planeIndex.data() + r, out.rgb.data() + 3 * w * j, out.distance.data() + w * j,
+                        fog ? rows.data() + (j - j0) * nq * stride : nullptr, stride);
     }
   };
   if (pool != nullptr && pool->size() > 1) pool->parallelFor(bands, band);
@@ -213,7 +568,7 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
 }
 
 void SurfaceShader::render(const Scene& scene, kernels::ShadeFrame& frame, SurfaceBuffers& out, ThreadPool* pool) {
-  prepare(scene, frame);
+  prepare(scene, frame, pool);
   SurfaceGBufferView none;
   none.width = scene.camera.width;
   none.height = scene.camera.height;

@@ -193,11 +193,13 @@ void CastPlanesRowImpl(const ShadeFrame& fr, int j, int count, float* HWY_RESTRI
 
 // One vector of pixels starting at image column i of row j: the geometry buffer's interleaved
 // inputs (normal and ρ red, 4 floats a pixel; ρ green and blue, 2; distance, 1; null: no mesh)
-// and the planes' t and index; interleaved output (3 floats) and the distance.
+// and the planes' t and index; interleaved output (3 floats) and the distance. `fog` (null: none):
+// the fog light's coefficients of lamp l at fog[(4 l + q) · stride], q < 4 (shadeRow).
 HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY_RESTRICT nrho,
                             const float* HWY_RESTRICT rgb2, const float* HWY_RESTRICT dp,
                             const float* HWY_RESTRICT planeT, const std::int32_t* HWY_RESTRICT planeIndex,
-                            float* HWY_RESTRICT out, float* HWY_RESTRICT outDistance) {
+                            float* HWY_RESTRICT out, float* HWY_RESTRICT outDistance, const float* HWY_RESTRICT fog,
+                            std::size_t stride) {
   const DF d;
   const DI di;
   const VF kt = hn::Set(d, fr.extinction), ia = hn::Set(d, fr.ambient);
@@ -250,7 +252,8 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
   const VF px = hn::Mul(hn::Mul(ox, inv), ds), py = hn::Mul(hn::Mul(oy, inv), ds), pz = hn::Mul(hn::Mul(oz, inv), ds);
   VF sr = zero, sg = zero, sb = zero;
   if (!hn::AllFalse(d, hit)) {
-    for (const ShadeLamp& L : fr.lamps) {
+    for (std::size_t l = 0; l < fr.lamps.size(); ++l) {
+      const ShadeLamp& L = fr.lamps[l];
       const VF tx = hn::Sub(px, hn::Set(d, L.pos[0])), ty = hn::Sub(py, hn::Set(d, L.pos[1])),
                tz = hn::Sub(pz, hn::Set(d, L.pos[2]));
       const VF r2 = hn::MulAdd(tx, tx, hn::MulAdd(ty, ty, hn::Mul(tz, tz)));
@@ -260,7 +263,25 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
       const VF wx = hn::Mul(tx, ir), wy = hn::Mul(ty, ir), wz = hn::Mul(tz, ir);
       const VF cosInc = hn::Neg(hn::MulAdd(wx, nx, hn::MulAdd(wy, ny, hn::Mul(wz, nz))));  // light against the normal
       const MF lit = hn::And(hn::And(hit, away), hn::Gt(cosInc, zero));
-      if (hn::AllFalse(d, lit)) continue;
+      VF e = zero;
+      if (fog != nullptr) {
+        // The fog's scattered light (render/fog_light.hpp): s0 μ⁺ + s1 + s2 μ + s3 P₂(μ), μ = cos i,
+        // on every surface pixel whatever side it faces.
+        const float* fl = fog + 4 * l * stride;
+        const VF s0 = hn::LoadU(d, fl), s1 = hn::LoadU(d, fl + stride), s2 = hn::LoadU(d, fl + 2 * stride),
+                 s3 = hn::LoadU(d, fl + 3 * stride);
+        const VF p2 = hn::MulSub(hn::Set(d, 1.5f), hn::Mul(cosInc, cosInc), hn::Set(d, 0.5f));
+        const VF ef = hn::MulAdd(s0, hn::Max(cosInc, zero), hn::MulAdd(s2, cosInc, hn::MulAdd(s3, p2, s1)));
+        e = hn::IfThenElseZero(hit, hn::Max(ef, zero));
+      }
+      if (hn::AllFalse(d, lit)) {
+        if (fog != nullptr) {
+          sr = hn::MulAdd(hn::Set(d, L.color[0]), e, sr);
+          sg = hn::MulAdd(hn::Set(d, L.color[1]), e, sg);
+          sb = hn::MulAdd(hn::Set(d, L.color[2]), e, sb);
+        }
+        continue;
+      }
       VF intensity;
       if (L.kind == 0) {
         intensity = hn::Set(d, L.i0);
@@ -279,8 +300,8 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
         }
       }
       // E = I cos(incidence) e^{−K_t r} / r² [lux]
-      const VF e = hn::IfThenElseZero(lit, hn::Mul(hn::Mul(hn::Mul(intensity, cosInc), hn::Exp(d, hn::Neg(hn::Mul(kt, r)))),
-                                                   hn::Mul(ir, ir)));
+      e = hn::Add(e, hn::IfThenElseZero(lit, hn::Mul(hn::Mul(hn::Mul(intensity, cosInc), hn::Exp(d, hn::Neg(hn::Mul(kt, r)))),
+                                                     hn::Mul(ir, ir))));
       sr = hn::MulAdd(hn::Set(d, L.color[0]), e, sr);
       sg = hn::MulAdd(hn::Set(d, L.color[1]), e, sg);
       sb = hn::MulAdd(hn::Set(d, L.color[2]), e, sb);
@@ -296,14 +317,15 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
 
 void ShadeRowImpl(const ShadeFrame& fr, int j, int count, const float* HWY_RESTRICT nrho, const float* HWY_RESTRICT rgb2,
                   const float* HWY_RESTRICT dist, const float* HWY_RESTRICT planeT,
-                  const std::int32_t* HWY_RESTRICT planeIndex, float* HWY_RESTRICT outRgb, float* HWY_RESTRICT outDist) {
+                  const std::int32_t* HWY_RESTRICT planeIndex, float* HWY_RESTRICT outRgb, float* HWY_RESTRICT outDist,
+                  const float* HWY_RESTRICT fog, std::size_t fogStride) {
   const DF d;
   const int N = static_cast<int>(hn::Lanes(d));
   const bool mesh = nrho != nullptr;
   int i = 0;
   for (; i + N <= count; i += N)
     ShadeVector(fr, j, i, mesh ? nrho + 4 * i : nullptr, mesh ? rgb2 + 2 * i : nullptr, mesh ? dist + i : nullptr,
-                planeT + i, planeIndex + i, outRgb + 3 * i, outDist + i);
+                planeT + i, planeIndex + i, outRgb + 3 * i, outDist + i, fog != nullptr ? fog + i : nullptr, fogStride);
   if (i == count) return;
   // The row's last pixels, through a vector padded with sky: interleaved loads past the row's
   // end would read past the buffer on the last row.
@@ -319,7 +341,8 @@ void ShadeRowImpl(const ShadeFrame& fr, int j, int count, const float* HWY_RESTR
     for (int c = 0; c < 4; ++c) n4[4 * k + c] = in && mesh ? nrho[4 * (i + k) + c] : 0.0f;
     for (int c = 0; c < 2; ++c) g2[2 * k + c] = in && mesh ? rgb2[2 * (i + k) + c] : 0.0f;
   }
-  ShadeVector(fr, j, i, n4, g2, dd, tp, ip, o3, od);
+  // The fog light's rows are padded (shadeRow: fogStride ≥ count + the widest vector): read as is.
+  ShadeVector(fr, j, i, n4, g2, dd, tp, ip, o3, od, fog != nullptr ? fog + i : nullptr, fogStride);
   for (int k = 0; k < 3 * rest; ++k) outRgb[3 * i + k] = o3[k];
   for (int k = 0; k < rest; ++k) outDist[i + k] = od[k];
 }
@@ -339,9 +362,9 @@ void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int
 
 void shadeRow(const ShadeFrame& frame, int j, int count, const float* normalRhoR, const float* rhoGB,
               const float* distance, const float* planeT, const std::int32_t* planeIndex, float* outRgb,
-              float* outDistance) {
+              float* outDistance, const float* fogLight, std::size_t fogStride) {
   HWY_DYNAMIC_DISPATCH(ShadeRowImpl)(frame, j, count, normalRhoR, rhoGB, distance, planeT, planeIndex, outRgb,
-                                     outDistance);
+                                     outDistance, fogLight, fogStride);
 }
 
 }  // namespace fogbeam::kernels

@@ -285,6 +285,7 @@ constexpr std::array kGlowKeys{
     KeySpec{"enabled"},
     KeySpec{"model"},
     KeySpec{"fade_in"},
+    KeySpec{"surfaces"},
 };
 constexpr std::array kGlareKeys{
     KeySpec{"enabled"},
@@ -338,6 +339,7 @@ GlowOptions parseGlow(const Section& s, const GlowOptions& fallback) {
   g.enabled = s.boolean("enabled", true);
   g.model = s.choice("model", kGlowModels, toString(g.model)) == "apsf" ? GlowModel::Apsf : GlowModel::Table;
   g.fade_in = s.number("fade_in", Range{Apsf::minOpticalDistance(), kInf, false, false}, g.fade_in);
+  g.surfaces = s.boolean("surfaces", g.surfaces);
   return g;
 }
 

@@ -153,6 +153,10 @@ struct ScatteredIrradiance {
 /// (the driver's own lamps: housing and car body take what a file gives backwards).
 void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out,
                       bool frontOnly = false);
+/// The same about the lamp-frame unit direction `axis` of `profile`: 4 bands uniform in cos η ×
+/// 24 azimuths per annulus, `narrowBands` bands for annuli narrower than 10°.
+void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges, std::size_t bins, double* out,
+                  bool frontOnly = false, int narrowBands = 4);
 /// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
 /// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
 [[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);

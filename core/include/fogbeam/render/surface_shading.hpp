@@ -12,7 +12,10 @@
 // Profile::intensity defines it: isotropic, spot (linear in angle from inner to outer) or the
 // tabulated grid interpolated bilinearly at the file's own angles (type A, B, C; every symmetry,
 // type C wrap-around) — no resampling, so cut-offs stay where the file puts them. Sky pixels
-// (d = +inf) get L_s = I_a.
+// (d = +inf) get L_s = I_a. With the fog light on (ShadeFrame::fog_light; [glow] surfaces) each
+// lamp's term also gets the fog's scattered light E_fog (fogbeam/render/fog_light.hpp), its four
+// coefficients evaluated on an adaptive grid per band of 16 rows and blended between its nodes
+// (docs/physics.md, "Scattered light on surfaces").
 //
 // Why on the CPU: on llvmpipe a fragment shader pays ~6 ns per lamp and pixel for the lamp loop
 // alone and ~30 ns for a tabulated profile (buffer-texture fetches and a binary search per lane),
@@ -25,6 +28,7 @@
 // the profiles a frame names alive (they are, while the shader lives).
 #pragma once
 
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/render/surface.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/thread_pool.hpp>
@@ -109,6 +113,13 @@ struct ShadeFrame {
   float extinction = 0.0f, ambient = 0.0f;  ///< K_t [1/m], I_a [cd/m²]
   std::vector<ShadeLamp> lamps;
   std::vector<ShadePlane> planes;
+  /// The fog's scattered light on the surfaces (fogbeam/render/fog_light.hpp), lamp for lamp as
+  /// `lamps`; on where its table is set (SurfaceShader::prepare: [glow] on with `surfaces`, and
+  /// the fog's phase function has a multiple-scattering table).
+  FogLightFrame fog_light;
+  /// Evaluate the fog light at every pixel instead of interpolating it between adaptive nodes
+  /// (the reference of the interpolation's tests; many times the cost).
+  bool fog_light_exact = false;
 };
 
 /// The scene's planes and body quads along the `count` pixel rays of image row j, in double as the GL plane
@@ -119,18 +130,23 @@ void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int
 /// Shades the `count` pixels of image row j (column 0 first): at each pixel the nearer of the
 /// geometry buffer's surface (interleaved rows in SurfaceGBufferView's layouts; all three null:
 /// none) and the plane castPlanesRow found, into `outRgb` (3 floats a pixel, cd/m²) and
-/// `outDistance` [m]. SIMD, dispatched at run time; reads and writes nothing beyond the row.
+/// `outDistance` [m]. `fogLight` (null: none): the fog's scattered light, lamp l's coefficients
+/// (fogLightCoefficients) of pixel i at fogLight[(4 l + q) · fogStride + i], q < 4, added to
+/// each lamp's direct illuminance; fogStride ≥ count + 64 (the last vector reads past the row).
+/// SIMD, dispatched at run time; writes nothing beyond the row.
 void shadeRow(const ShadeFrame& frame, int j, int count, const float* normalRhoR, const float* rhoGB,
               const float* distance, const float* planeT, const std::int32_t* planeIndex, float* outRgb,
-              float* outDistance);
+              float* outDistance, const float* fogLight = nullptr, std::size_t fogStride = 0);
 
 }  // namespace kernels
 
 class SurfaceShader {
  public:
   /// This frame's camera, fog and lamps, in float (tabulated profiles are converted once and
-  /// kept while the shader lives, keyed by identity).
-  void prepare(const Scene& scene, kernels::ShadeFrame& frame);
+  /// kept while the shader lives, keyed by identity). With the fog light on ([glow] enabled and
+  /// `surfaces`), its table (once per phase function and albedo, ~0.2 s) and each profile's
+  /// annulus map (once per profile, ~0.3 s) are built on first use, on `pool` when given.
+  void prepare(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool = nullptr);
   /// L_s and the distance of every pixel into `out` (resized; row 0 at the top), from the
   /// geometry buffer `g` of the frame `frame` was prepared for. Rows are spread over `pool`
   /// (null: the calling thread).
@@ -158,6 +174,16 @@ class SurfaceShader {
   };
   std::vector<std::unique_ptr<Table>> tables_;
   const kernels::ShadeTable* tableFor(const std::shared_ptr<const Profile>& profile);
+  // The fog light's table and the annulus maps it reads (per profile and front-only flag).
+  std::shared_ptr<const FogLightTable> fogTable_;
+  struct FogMap {
+    std::shared_ptr<const Profile> profile;
+    bool frontOnly = false;
+    std::shared_ptr<const AnnulusMeanMap> map;
+  };
+  std::vector<FogMap> fogMaps_;
+  void prepareFogLight(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool);
+
 };
 
 }  // namespace fogbeam

@@ -31,6 +31,10 @@ struct GlowOptions {
   /// linearly from Apsf::minOpticalDistance() (1.1), where the series stops converging, so that
   /// an approaching car's glow does not pop. ≥ 1.1.
   double fade_in = 2.0;
+  /// The fog's scattered light on the surfaces (fogbeam/render/fog_light.hpp): orders 1 and up of
+  /// every lamp's light, scattered onto the surfaces by the fog around them, added to the surface
+  /// layer where the CPU lights it. Needs a multiple-scattering table for the fog's phase function.
+  bool surfaces = true;
 };
 
 /// The driver's disability glare: CIE 146:2002 veiling luminance of the lamps in view.

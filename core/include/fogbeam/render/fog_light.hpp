@@ -1,0 +1,160 @@
+// fogbeam — the fog's scattered light on surfaces (issue 18): what the surface layer's direct
+// light I(w) cos i e^{−K_t r}/r² leaves out. Every point of a surface is also lit by the fog
+// around it, which glows with the light it scatters from the lamps (order 1) and scatters again
+// (orders ≥ 2). In 50 m fog that is 0.6 × the direct light under a street lamp and 3–15 × it
+// 20–40 m along the road (docs/airlight.md, "Scattered light on surfaces").
+//
+// The model (docs/physics.md, "Scattered light on surfaces"). For a lamp at distance r from a
+// surface point X, seen in the direction a (unit, from X to the lamp), in fog of extinction K_t,
+// albedo Ω and phase p, the radiance arriving at X from the direction ω at the angle θ from a is
+// by dimensional analysis K_t² l(T, θ) per cd, T = K_t r. Split by the angle η at the lamp between
+// the direction the light left it and the direction to X (the multiple-scattering tables'
+// emission bins k, edges η_k), a measured lamp contributes Σ_k Ī_k(w) K_t² l_k(T, θ), Ī_k(w) the
+// mean of its intensity over the annulus η ∈ [η_k, η_{k+1}] about w = −a (lamp frame): exact for
+// the part of the light symmetric about the lamp–point axis, a stand-in for the rest (as the
+// glow's). Per bin:
+//   order 1:  l¹_k(T, θ) = Ω / (T sin θ) ∫_{η ∈ bin k, η < π − θ} p(cos(θ + η))
+//                                           e^{−T (sin η + sin θ) / sin(θ + η)} dη
+//   (law of sines in the triangle X, lamp, scattering point: the scattering angle is θ + η),
+//   orders ≥ 2: f(T, θ, Ω) share_k(T, θ) from the multiple-scattering table.
+// The irradiance of a Lambertian element with unit normal n is E = ∫ L(ω) max(0, ω·n) dω, for a
+// radiance symmetric about a a function of μ = n·a alone. FogLightTable computes it exactly at 41
+// values of μ and fits, per bin and T node,
+//   E_k(μ) ≈ κ_k μ⁺ + c_k0 + c_k1 μ + c_k2 P₂(μ)                         [lux per cd, K_t = 1 /m]
+// (weighted least squares, nearly relative: the μ⁺ term is the light from close to the lamp's
+// direction, whose clamped cosine has a kink at grazing incidence that no polynomial follows), so
+// a lamp's fog light at a point is four numbers s = K_t² Σ_k Ī_k (κ_k, c_k0, c_k1, c_k2) that depend
+// on the point's position only (fogLightLamp); the normal enters per pixel (fogLightIrradiance).
+// The surface layer evaluates s on an adaptive grid and blends it between nodes (SurfaceShader,
+// fogbeam/render/surface_shading.hpp).
+//
+// Assumes infinite homogeneous fog around each point (a road absorbs part of the diffuse light
+// and there is no fog below it: measured 0.86–1.33 of the path tracer on a road of ρ = 0.1),
+// no shadows (as the direct light), and light that reaches the surface through the fog only
+// (the direct light is the surface layer's).
+//
+// Thread-safety: the tables and maps are immutable after build and may be read from any thread.
+#pragma once
+
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/physics/profile.hpp>
+#include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/result.hpp>
+
+#include <array>
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace fogbeam {
+
+class MultipleScatteringTable;
+class ThreadPool;
+
+/// The coefficients (κ_k, c_k0, c_k1, c_k2)(T) of the header comment for one phase function and
+/// albedo, on T = 2^(−7) … 2^5 at 2^(1/4); per cd of each emission bin's mean intensity, K_t = 1 /m.
+class FogLightTable {
+ public:
+  static constexpr std::size_t kCoefficients = 4;  ///< κ, c0, c1, c2 per bin
+  /// Order 1 by Gauss–Legendre quadrature over η (per bin, 8 points per piece, pieces ≤ 3°,
+  /// finer near η = 0 for forward-peaked phase functions), orders ≥ 2 from `ms` (its emission
+  /// bins; a table without bins counts as one bin 0–180°), E_k(μ) over the glow curve's 257
+  /// angles. `pool`: the T nodes are spread over it (null: this thread). ~0.15 s on 2 cores.
+  /// Errors: albedo outside (0, 1].
+  [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> build(const MultipleScatteringTable& ms,
+                                                                          const Phase& phase, double albedo,
+                                                                          ThreadPool* pool = nullptr);
+  /// The cached table for (phase, albedo, ms): built on first use, the 4 most recent kept.
+  [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> get(
+      const std::shared_ptr<const MultipleScatteringTable>& ms, const Phase& phase, double albedo,
+      ThreadPool* pool = nullptr);
+
+  [[nodiscard]] std::size_t bins() const noexcept { return edges_.size() - 1; }
+  /// Emission bin edges η_k, radians, 0 … π.
+  [[nodiscard]] const std::vector<double>& edges() const noexcept { return edges_; }
+  [[nodiscard]] double albedo() const noexcept { return albedo_; }
+  /// c[k · kCoefficients + q] (κ, c0, c1, c2 of bin k) at optical distance T (per cd, K_t = 1 /m):
+  /// between the fit's nodes log-linear in T for E_k(μ = 1) and linear for the coefficients over
+  /// it, read from a dense resampling of that (linear between its rows); below the first node
+  /// c ∝ 1/T (order 1's limit: the light gathered within a few mean free paths); above the last
+  /// node (T = 32, where the light has fallen by e^{−32}) 0. `c` holds bins() · kCoefficients values.
+  void coefficients(double opticalDistance, double* c) const noexcept;
+  /// Σ_k binMeans[k] c_k(T) × scale into out[0 … 3] (κ, c0, c1, c2) in float, from the dense
+  /// table; binMeans null: an isotropic lamp (every mean 1). The frames' look-up.
+  void weighted(double opticalDistance, const float* binMeans, float scale, float* out) const noexcept;
+  /// E(μ) per cd of a lamp whose bins' mean intensities are `binMeans` (K_t = 1 /m: multiply
+  /// by K_t²), clamped at 0; μ = cos of the angle between the normal and the lamp's direction.
+  [[nodiscard]] double irradiance(double opticalDistance, double mu, const double* binMeans) const noexcept;
+
+  [[nodiscard]] const std::vector<double>& opticalDistances() const noexcept { return t_; }
+  [[nodiscard]] double buildSeconds() const noexcept { return buildSeconds_; }
+
+ private:
+  FogLightTable() = default;
+  void smoothCoefficients(double opticalDistance, double* c) const noexcept;  // from the build nodes
+  std::vector<double> edges_, t_;
+  std::vector<double> logEnv_, norm_;  // [iT][k] log E_k(μ = 1); [iT][k][4] the coefficients over it
+  std::vector<float> dense_;           // [dense T node][k][4] (fog_light.cpp)
+  std::vector<float> denseSum_;        // [dense T node][4]: Σ over bins
+  double albedo_ = 1.0;
+  double buildSeconds_ = 0.0;
+};
+
+/// Order 1 of the header comment for one bin: l¹ (albedo 1) at (T, θ) from the light that left
+/// the lamp at η ∈ [eta0, eta1] (radians). Exposed for tests (the sum over bins is the isotropic
+/// lamp's single scattering).
+[[nodiscard]] double fogLightOrder1(const Phase& phase, double opticalDistance, double theta, double eta0,
+                                    double eta1) noexcept;
+
+/// Ī_k(w) of one profile over the lamp-frame directions: a grid of 3° in the angle from the
+/// lamp's +x axis (0 … 180°) and the azimuth about it (atan2(z, y)), bilinear between nodes.
+/// Built once per (profile, bins, frontOnly): ~0.3–0.6 s for a tabulated file on 2 cores.
+class AnnulusMeanMap {
+ public:
+  /// `frontOnly`: directions behind the lamp's axis are dark (the driver's own lamps, as the glow).
+  [[nodiscard]] static std::shared_ptr<const AnnulusMeanMap> build(const Profile& profile,
+                                                                   const std::vector<double>& edges, bool frontOnly,
+                                                                   ThreadPool* pool = nullptr);
+  /// Ī_k for the lamp-frame unit direction `w`, k < bins, into out.
+  void lookup(const Vec3& w, double* out) const noexcept;
+  void lookup(const Vec3& w, float* out) const noexcept;
+  [[nodiscard]] std::size_t bins() const noexcept { return bins_; }
+
+ private:
+  AnnulusMeanMap() = default;
+  template <class T>
+  void lookupInto(const Vec3& w, T* out) const noexcept;
+  std::size_t bins_ = 0;
+  int nA_ = 0, nB_ = 0;
+  std::vector<float> v_;  // [iα][iβ][k]
+};
+
+/// One frame's lamps for the fog light, camera-relative (positions in metres from the eye).
+struct FogLightFrame {
+  struct Lamp {
+    Vec3 pos{0.0};        ///< lamp − eye, m
+    Mat3 lampFromWorld{1.0};
+    double i0 = 0.0;      ///< isotropic intensity (map null), cd
+    const AnnulusMeanMap* map = nullptr;
+  };
+  double extinction = 0.0;  ///< K_t, 1/m
+  const FogLightTable* table = nullptr;
+  std::vector<Lamp> lamps;
+};
+
+/// Each lamp's s = K_t² Σ_k Ī_k c_k(K_t r) at the camera-relative point `x` (m), into
+/// out[4 ℓ … 4 ℓ + 3] for lamp ℓ (0 where K_t r > 32 or r = 0): its fog light on an element of
+/// unit normal n there is E = s0 μ⁺ + s1 + s2 μ + s3 P₂(μ) lux (clamp at 0), μ = n · (lamp − x)/r.
+/// Returns the distance to the nearest lamp that counts (m; +inf: none). Reentrant.
+double fogLightCoefficients(const FogLightFrame& frame, const Vec3& x, float* out) noexcept;
+
+/// The same for lamp `lamp` alone, into out[0 … 3]; returns its distance (m).
+double fogLightLamp(const FogLightFrame& frame, std::size_t lamp, const Vec3& x, float* out) noexcept;
+
+/// E of one lamp from its coefficients (fogLightCoefficients), clamped at 0.
+[[nodiscard]] inline float fogLightIrradiance(const float* s, float mu) noexcept {
+  const float e = s[0] * (mu > 0.0f ? mu : 0.0f) + s[1] + s[2] * mu + s[3] * (1.5f * mu * mu - 0.5f);
+  return e > 0.0f ? e : 0.0f;
+}
+
+}  // namespace fogbeam

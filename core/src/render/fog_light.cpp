@@ -1,0 +1,392 @@
+// fogbeam — the fog's scattered light on surfaces (fogbeam/render/fog_light.hpp).
+#include <fogbeam/render/fog_light.hpp>
+
+#include <fogbeam/physics/math.hpp>
+#include <fogbeam/physics/multiple_scattering.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
+#include <fogbeam/util/shared_cache.hpp>
+#include <fogbeam/util/thread_pool.hpp>
+
+#include "glow_quadrature.hpp"
+
+#include <boost/math/quadrature/gauss.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+namespace fogbeam {
+
+namespace {
+
+constexpr double kDeg = kPi / 180.0;
+// T nodes 2^(kLogFirst + i / kPerOctave), i < kTNodes: 2^(−7) … 2^5.
+constexpr int kPerOctave = 4, kLogFirst = -7, kTNodes = 12 * kPerOctave + 1;
+// The dense table: T = 2^(−7 + i/16) for i ≤ 112 (up to 1), then 1 + (i − 112)/16 up to 32.
+constexpr std::size_t kDenseLog = 7 * 16, kDenseNodes = kDenseLog + 31 * 16 + 1;
+double denseT(std::size_t i) {
+  return i <= kDenseLog ? std::exp2(-7.0 + static_cast<double>(i) / 16.0) : 1.0 + static_cast<double>(i - kDenseLog) / 16.0;
+}
+double denseIndex(double T) {  // fractional node of T (≥ 0)
+  return T < 1.0 ? std::max(0.0, (std::log2(T) + 7.0) * 16.0) : static_cast<double>(kDenseLog) + (T - 1.0) * 16.0;
+}
+
+// Angles of the glow curve the moments integrate over (glowNodeAngle).
+constexpr std::size_t kThetaNodes = 257;
+// The annulus maps' grid: the angle α from the lamp's axis every 1° up to 24° (a headlamp's
+// beam and cut-off lie within a few degrees of its axis, and the first bins are 3° and 5° wide),
+// then every 3°; the azimuth every 3°.
+constexpr double kMapFine = 1.0 * kDeg, kMapFineEnd = 24.0 * kDeg, kMapStep = 3.0 * kDeg;
+constexpr int kMapFineRows = 24;  // rows below kMapFineEnd
+double mapAlpha(std::size_t i) {
+  const double fine = static_cast<double>(std::min<std::size_t>(i, kMapFineRows)) * kMapFine;
+  return i <= static_cast<std::size_t>(kMapFineRows) ? fine : kMapFineEnd + static_cast<double>(i - kMapFineRows) * kMapStep;
+}
+double mapRow(double alpha) {  // fractional row of α
+  return alpha < kMapFineEnd ? alpha / kMapFine : kMapFineRows + (alpha - kMapFineEnd) / kMapStep;
+}
+
+// Normals of the fit: μ_j = cos of the angle between the normal and the lamp's direction,
+// uniform in [−1, 1].
+constexpr std::size_t kMuNodes = 41;
+double muNode(std::size_t j) { return -1.0 + 2.0 * static_cast<double>(j) / static_cast<double>(kMuNodes - 1); }
+
+// E(μ) ≈ κ μ⁺ + c0 + c1 μ + c2 P₂(μ) through E(μ_j) by least squares weighted by
+// 1 / (E + 0.02 E(1))²: nearly relative. The μ⁺ term is the light that arrives from close to the
+// lamp's direction (its clamped cosine has a kink at grazing incidence no polynomial follows);
+// the rest is smooth. Gaussian elimination with partial pivoting on the 4 × 4 normal equations.
+// out = {κ, c0, c1, c2}; all zero when E is.
+void fitIrradiance(const std::vector<double>& E, double* out) {
+  for (int q = 0; q < 4; ++q) out[q] = 0.0;
+  const double floor = 0.02 * E.back();
+  if (!(floor > 0.0)) return;
+  double A[4][5] = {};
+  for (std::size_t j = 0; j < E.size(); ++j) {
+    const double mu = muNode(j), p[4] = {std::max(mu, 0.0), 1.0, mu, 0.5 * (3.0 * mu * mu - 1.0)};
+    const double w = 1.0 / ((E[j] + floor) * (E[j] + floor));
+    for (int r = 0; r < 4; ++r) {
+      A[r][4] += w * p[r] * E[j];
+      for (int q = 0; q < 4; ++q) A[r][q] += w * p[r] * p[q];
+    }
+  }
+  for (int c = 0; c < 4; ++c) {
+    int piv = c;
+    for (int r = c + 1; r < 4; ++r)
+      if (std::abs(A[r][c]) > std::abs(A[piv][c])) piv = r;
+    if (!(std::abs(A[piv][c]) > 0.0)) return;
+    for (int q = 0; q < 5; ++q) std::swap(A[c][q], A[piv][q]);
+    for (int r = c + 1; r < 4; ++r) {
+      const double f = A[r][c] / A[c][c];
+      for (int q = c; q < 5; ++q) A[r][q] -= f * A[c][q];
+    }
+  }
+  for (int c = 3; c >= 0; --c) {
+    double v = A[c][4];
+    for (int q = c + 1; q < 4; ++q) v -= A[c][q] * out[q];
+    out[c] = v / A[c][c];
+  }
+}
+
+// Breakpoints of the order-1 quadrature in η: fine near η = 0, where the scattering angle θ + η
+// of a ray next to the lamp sits in the phase function's forward peak, then every 3°.
+const std::vector<double>& etaBreaks() {
+  static const std::vector<double> b = [] {
+    std::vector<double> v{0.0};
+    for (double e = 0.05; e < 3.0; e *= 2.0) v.push_back(e * kDeg);
+    for (double e = 3.0; e <= 180.0 + 1e-9; e += 3.0) v.push_back(e * kDeg);
+    return v;
+  }();
+  return b;
+}
+
+// ∫ over [a, b] of the order-1 integrand at (T, θ), 8-point Gauss–Legendre.
+double order1Piece(const Phase& phase, double T, double theta, double sinTheta, double a, double b) {
+  auto f = [&](double eta) {
+    const double s = std::sin(theta + eta);
+    if (!(s > 0.0)) return 0.0;
+    const double x = T * (std::sin(eta) + sinTheta) / s;
+    return x > 700.0 ? 0.0 : evalPhase(phase, std::cos(theta + eta)) * std::exp(-x);
+  };
+  return boost::math::quadrature::gauss<double, 8>::integrate(f, a, b);
+}
+
+// l¹ per bin at (T, θ) into out[k] (albedo 1): every piece of the breakpoints and bin edges,
+// each added to its bin.
+void order1Bins(const Phase& phase, double T, double theta, const std::vector<double>& edges, double* out) {
+  const std::size_t bins = edges.size() - 1;
+  for (std::size_t k = 0; k < bins; ++k) out[k] = 0.0;
+  const double sinTheta = std::sin(theta);
+  if (!(sinTheta > 0.0) || !(T > 0.0)) return;
+  const double top = kPi - theta;
+  const auto& br = etaBreaks();
+  std::size_t ib = 1;
+  for (std::size_t k = 0; k < bins; ++k) {
+    double a = edges[k];
+    const double end = std::min(edges[k + 1], top);
+    while (a < end) {
+      while (ib < br.size() && br[ib] <= a) ++ib;
+      const double b = std::min(end, ib < br.size() ? br[ib] : end);
+      out[k] += order1Piece(phase, T, theta, sinTheta, a, b);
+      a = b;
+    }
+  }
+  for (std::size_t k = 0; k < bins; ++k) out[k] /= T * sinTheta;
+}
+
+}  // namespace
+
+double fogLightOrder1(const Phase& phase, double opticalDistance, double theta, double eta0, double eta1) noexcept {
+  const std::vector<double> edges{eta0, eta1};
+  double out = 0.0;
+  order1Bins(phase, opticalDistance, theta, edges, &out);
+  return out;
+}
+
+Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const MultipleScatteringTable& ms, const Phase& phase,
+                                                                  double albedo, ThreadPool* pool) {
+  if (!(albedo > 0.0 && albedo <= 1.0)) return Error{"fog light: albedo must lie in (0, 1]"};
+  const auto start = std::chrono::steady_clock::now();
+  std::shared_ptr<FogLightTable> t(new FogLightTable());
+  t->albedo_ = albedo;
+  t->edges_ = ms.hasEmissionBins() ? ms.emissionEdges() : std::vector<double>{0.0, kPi};
+  const std::size_t bins = t->bins();
+  t->t_.resize(kTNodes);
+  for (int i = 0; i < kTNodes; ++i)
+    t->t_[static_cast<std::size_t>(i)] = std::exp2(kLogFirst + static_cast<double>(i) / kPerOctave);
+  t->logEnv_.assign(kTNodes * bins, 0.0);
+  t->norm_.assign(kTNodes * bins * 4, 0.0);
+  std::vector<double> theta(kThetaNodes);
+  for (std::size_t i = 0; i < kThetaNodes; ++i) theta[i] = glow_quadrature::glowNodeAngle(i, kThetaNodes);
+
+  auto node = [&](std::size_t iT) {
+    const double T = t->t_[iT];
+    // L_k(θ_i) (K_t = 1 /m, 1 cd): Ω l¹_k + f share_k.
+    std::vector<double> L(kThetaNodes * bins, 0.0), shares(bins, 1.0), o1(bins);
+    for (std::size_t i = 1; i < kThetaNodes; ++i) {
+      order1Bins(phase, T, theta[i], t->edges_, o1.data());
+      const double f = ms.value(T, theta[i], albedo);
+      if (ms.hasEmissionBins()) ms.emissionShares(T, theta[i], shares.data());
+      for (std::size_t k = 0; k < bins; ++k) L[i * bins + k] = albedo * o1[k] + f * shares[k];
+    }
+    // E_k(μ) exactly at kMuNodes normals (the azimuthal integral of max(0, ω·n) in closed
+    // form, as scatteredIrradiance), then c_k0 + c_k1 μ + c_k2 P₂(μ) by least squares weighted
+    // by 1 / (E_k(μ) + 0.02 E_k(1))²: nearly relative over μ ∈ [−1, 1]. (Truncating the
+    // Funk–Hecke series at l = 2 instead is the best fit over the sphere, but it rings: +40 % at
+    // grazing incidence, where a road sees a lamp, and it goes negative facing away.)
+    std::vector<double> E(kMuNodes);
+    for (std::size_t k = 0; k < bins; ++k) {
+      for (std::size_t j = 0; j < kMuNodes; ++j) {
+        const double ci = muNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
+        E[j] = glow_quadrature::integrateFromApex(theta, [&](std::size_t i) {
+          const double a = std::cos(theta[i]) * ci, b = std::sin(theta[i]) * si;
+          double w;
+          if (b <= std::abs(a)) w = 2.0 * kPi * std::max(a, 0.0);
+          else {
+            const double phi0 = std::acos(std::clamp(-a / b, -1.0, 1.0));
+            w = 2.0 * (a * phi0 + b * std::sin(phi0));
+          }
+          return L[i * bins + k] * w * std::sin(theta[i]);
+        });
+      }
+      double c[4];
+      fitIrradiance(E, c);
+      // Stored as log E_k(1) (the envelope: positive, falls as e^{−T}) and the four coefficients
+      // over it (bounded), so that T interpolates smoothly.
+      const double env = E.back();
+      t->logEnv_[iT * bins + k] = std::log(std::max(env, 1e-300));
+      for (int q = 0; q < 4; ++q) t->norm_[(iT * bins + k) * 4 + static_cast<std::size_t>(q)] = env > 0.0 ? c[q] / env : 0.0;
+    }
+  };
+  if (pool != nullptr && pool->size() > 1) pool->parallelFor(kTNodes, node);
+  else
+    for (std::size_t i = 0; i < kTNodes; ++i) node(i);
+  // The dense table the frames read: the log-linear interpolation above, resampled where linear
+  // interpolation is within 0.1 % of it (T every 2^(1/16) below 1, every 1/16 above), so that a
+  // look-up is a lerp of two rows, without an exp per bin.
+  t->dense_.resize(kDenseNodes * bins * kCoefficients);
+  std::vector<double> row(bins * kCoefficients);
+  for (std::size_t i = 0; i < kDenseNodes; ++i) {
+    t->smoothCoefficients(denseT(i), row.data());
+    for (std::size_t q = 0; q < row.size(); ++q) t->dense_[i * row.size() + q] = static_cast<float>(row[q]);
+  }
+  t->denseSum_.assign(kDenseNodes * kCoefficients, 0.0f);
+  for (std::size_t i = 0; i < kDenseNodes; ++i)
+    for (std::size_t k = 0; k < bins; ++k)
+      for (std::size_t q = 0; q < kCoefficients; ++q)
+        t->denseSum_[i * kCoefficients + q] += t->dense_[(i * bins + k) * kCoefficients + q];
+  t->buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return std::shared_ptr<const FogLightTable>(std::move(t));
+}
+
+Result<std::shared_ptr<const FogLightTable>> FogLightTable::get(const std::shared_ptr<const MultipleScatteringTable>& ms,
+                                                                const Phase& phase, double albedo, ThreadPool* pool) {
+  if (!ms) return Error{"fog light: no multiple-scattering table"};
+  using Key = std::tuple<const void*, PhaseIdentity, double>;
+  static SharedCache<Key, FogLightTable> cache(4);
+  std::string error;
+  auto table = cache.get(
+      Key{ms.get(), phaseIdentity(phase), albedo},
+      [&]() -> std::shared_ptr<const FogLightTable> {
+        auto built = build(*ms, phase, albedo, pool);
+        if (!built) {
+          error = built.error().message;
+          return nullptr;
+        }
+        return std::move(built).value();
+      },
+      ms);
+  if (!table) return Error{error.empty() ? "fog light: table build failed" : error};
+  return table;
+}
+
+void FogLightTable::smoothCoefficients(double opticalDistance, double* c) const noexcept {
+  const std::size_t bins = this->bins();
+  const double T = opticalDistance;
+  if (!(T > 0.0) || T > t_.back()) {
+    for (std::size_t i = 0; i < bins * kCoefficients; ++i) c[i] = 0.0;
+    return;
+  }
+  const double x = std::max(0.0, (std::log2(T) - kLogFirst) * kPerOctave);
+  const std::size_t i0 = std::min(static_cast<std::size_t>(x), t_.size() - 2);
+  const double w = std::min(x - static_cast<double>(i0), 1.0);
+  const double below = T < t_.front() ? t_.front() / T : 1.0;  // ∝ 1/T below the first node
+  for (std::size_t k = 0; k < bins; ++k) {
+    const std::size_t a = i0 * bins + k, b = (i0 + 1) * bins + k;
+    const double env = below * std::exp((1.0 - w) * logEnv_[a] + w * logEnv_[b]);
+    for (std::size_t q = 0; q < kCoefficients; ++q)
+      c[k * kCoefficients + q] = env * ((1.0 - w) * norm_[4 * a + q] + w * norm_[4 * b + q]);
+  }
+}
+
+void FogLightTable::coefficients(double opticalDistance, double* c) const noexcept {
+  const std::size_t n = bins() * kCoefficients;
+  const double T = opticalDistance;
+  if (!(T > 0.0) || T > t_.back()) {
+    for (std::size_t i = 0; i < n; ++i) c[i] = 0.0;
+    return;
+  }
+  const double x = denseIndex(T);
+  const std::size_t i0 = std::min(static_cast<std::size_t>(x), kDenseNodes - 2);
+  const double w = std::min(x - static_cast<double>(i0), 1.0);
+  const double below = T < t_.front() ? t_.front() / T : 1.0;  // ∝ 1/T below the first node
+  const float* a = dense_.data() + i0 * n;
+  const float* b = a + n;
+  for (std::size_t q = 0; q < n; ++q) c[q] = below * ((1.0 - w) * double(a[q]) + w * double(b[q]));
+}
+
+void FogLightTable::weighted(double opticalDistance, const float* binMeans, float scale, float* out) const noexcept {
+  const std::size_t bins = this->bins(), n = bins * kCoefficients;
+  const double T = opticalDistance;
+  for (std::size_t q = 0; q < kCoefficients; ++q) out[q] = 0.0f;
+  if (!(T > 0.0) || T > t_.back()) return;
+  const double x = denseIndex(T);
+  const std::size_t i0 = std::min(static_cast<std::size_t>(x), kDenseNodes - 2);
+  const float w = static_cast<float>(std::min(x - static_cast<double>(i0), 1.0));
+  const float s = T < t_.front() ? scale * static_cast<float>(t_.front() / T) : scale;
+  if (binMeans == nullptr) {  // an isotropic lamp: every bin's mean is 1, the rows' sums over bins
+    const float* a = denseSum_.data() + i0 * kCoefficients;
+    for (std::size_t q = 0; q < kCoefficients; ++q) out[q] = s * (a[q] + w * (a[q + kCoefficients] - a[q]));
+    return;
+  }
+  const float* a = dense_.data() + i0 * n;
+  const float* b = a + n;
+  float sa[kCoefficients] = {0.0f, 0.0f, 0.0f, 0.0f}, sb[kCoefficients] = {0.0f, 0.0f, 0.0f, 0.0f};
+  for (std::size_t k = 0; k < bins; ++k)
+    for (std::size_t q = 0; q < kCoefficients; ++q) {
+      sa[q] += binMeans[k] * a[k * kCoefficients + q];
+      sb[q] += binMeans[k] * b[k * kCoefficients + q];
+    }
+  for (std::size_t q = 0; q < kCoefficients; ++q) out[q] = s * (sa[q] + w * (sb[q] - sa[q]));
+}
+
+double FogLightTable::irradiance(double opticalDistance, double mu, const double* binMeans) const noexcept {
+  const std::size_t bins = this->bins();
+  double c[64 * kCoefficients];
+  if (bins > 64) return 0.0;
+  coefficients(opticalDistance, c);
+  double s[kCoefficients] = {0.0, 0.0, 0.0, 0.0};
+  for (std::size_t k = 0; k < bins; ++k)
+    for (std::size_t q = 0; q < kCoefficients; ++q) s[q] += binMeans[k] * c[k * kCoefficients + q];
+  return std::max(0.0, s[0] * std::max(mu, 0.0) + s[1] + s[2] * mu + s[3] * 0.5 * (3.0 * mu * mu - 1.0));
+}
+
+std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profile, const std::vector<double>& edges,
+                                                            bool frontOnly, ThreadPool* pool) {
+  std::shared_ptr<AnnulusMeanMap> m(new AnnulusMeanMap());
+  m->bins_ = edges.size() - 1;
+  m->nA_ = kMapFineRows + static_cast<int>(std::lround((kPi - kMapFineEnd) / kMapStep)) + 1;  // 0 … 180°
+  m->nB_ = static_cast<int>(std::lround(2.0 * kPi / kMapStep)) + 1;  // 0 … 360°, the last = the first
+  const std::size_t bins = m->bins_, nB = static_cast<std::size_t>(m->nB_);
+  m->v_.assign(static_cast<std::size_t>(m->nA_) * nB * bins, 0.0f);
+  auto row = [&](std::size_t ia) {
+    std::vector<double> out(bins);
+    const double a = mapAlpha(ia);
+    for (std::size_t ib = 0; ib + 1 < nB; ++ib) {
+      const double b = static_cast<double>(ib) * kMapStep;
+      const Vec3 w{std::cos(a), std::sin(a) * std::cos(b), std::sin(a) * std::sin(b)};
+      annulusMeans(profile, w, edges.data(), bins, out.data(), frontOnly, 2);
+      for (std::size_t k = 0; k < bins; ++k) m->v_[(ia * nB + ib) * bins + k] = static_cast<float>(out[k]);
+    }
+    for (std::size_t k = 0; k < bins; ++k) m->v_[(ia * nB + nB - 1) * bins + k] = m->v_[(ia * nB) * bins + k];
+  };
+  if (pool != nullptr && pool->size() > 1) pool->parallelFor(static_cast<std::size_t>(m->nA_), row);
+  else
+    for (std::size_t ia = 0; ia < static_cast<std::size_t>(m->nA_); ++ia) row(ia);
+  return m;
+}
+
+template <class T>
+void AnnulusMeanMap::lookupInto(const Vec3& w, T* out) const noexcept {
+  const double a = fastAtan2(std::sqrt(w.y * w.y + w.z * w.z), w.x);
+  double b = fastAtan2(w.z, w.y);
+  if (b < 0.0) b += 2.0 * kPi;
+  const double x = std::clamp(mapRow(a), 0.0, static_cast<double>(nA_ - 1));
+  const double y = std::clamp(b / kMapStep, 0.0, static_cast<double>(nB_ - 1));
+  const std::size_t ia = std::min(static_cast<std::size_t>(x), static_cast<std::size_t>(nA_ - 2));
+  const std::size_t ib = std::min(static_cast<std::size_t>(y), static_cast<std::size_t>(nB_ - 2));
+  const float u = static_cast<float>(x - static_cast<double>(ia)), v = static_cast<float>(y - static_cast<double>(ib));
+  const std::size_t nB = static_cast<std::size_t>(nB_);
+  const float* p00 = &v_[(ia * nB + ib) * bins_];
+  const float* p01 = p00 + bins_;
+  const float* p10 = p00 + nB * bins_;
+  const float* p11 = p10 + bins_;
+  const float w00 = (1 - u) * (1 - v), w01 = (1 - u) * v, w10 = u * (1 - v), w11 = u * v;
+  for (std::size_t k = 0; k < bins_; ++k) out[k] = static_cast<T>(w00 * p00[k] + w01 * p01[k] + w10 * p10[k] + w11 * p11[k]);
+}
+
+void AnnulusMeanMap::lookup(const Vec3& w, float* out) const noexcept { lookupInto(w, out); }
+void AnnulusMeanMap::lookup(const Vec3& w, double* out) const noexcept { lookupInto(w, out); }
+
+double fogLightLamp(const FogLightFrame& frame, std::size_t lamp, const Vec3& x, float* out) noexcept {
+  out[0] = out[1] = out[2] = out[3] = 0.0f;
+  const FogLightTable* table = frame.table;
+  const FogLightFrame::Lamp& L = frame.lamps[lamp];
+  const Vec3 d = L.pos - x;
+  const double r = glm::length(d);
+  if (table == nullptr || table->bins() > 64) return r;
+  const double kt = frame.extinction;
+  if (!(r > 0.0) || kt * r > table->opticalDistances().back()) return r;
+  const float kt2 = static_cast<float>(kt * kt);
+  if (L.map != nullptr) {
+    float means[64];
+    L.map->lookup(L.lampFromWorld * (-d / r), means);  // from the lamp to x
+    table->weighted(kt * r, means, kt2, out);
+  } else {
+    table->weighted(kt * r, nullptr, kt2 * static_cast<float>(L.i0), out);
+  }
+  return r;
+}
+
+double fogLightCoefficients(const FogLightFrame& frame, const Vec3& x, float* out) noexcept {
+  double near = std::numeric_limits<double>::infinity();
+  const double limit = frame.table != nullptr ? frame.table->opticalDistances().back() : 0.0;
+  for (std::size_t l = 0; l < frame.lamps.size(); ++l) {
+    const double r = fogLightLamp(frame, l, x, out + 4 * l);
+    if (r > 0.0 && frame.extinction * r <= limit) near = std::min(near, r);
+  }
+  return near;
+}
+
+}  // namespace fogbeam

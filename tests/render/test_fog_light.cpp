@@ -1,0 +1,264 @@
+// The fog's scattered light on surfaces (render/fog_light.hpp, issue 18): order 1 per emission
+// bin against a quadrature along the ray, the zonal table against the exact hemispherical
+// integral of scatteredIrradiance, the annulus maps against direct annulus means, and the
+// quadratic form against the table.
+#include <fogbeam/physics/medium.hpp>
+#include <fogbeam/physics/multiple_scattering.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/render/airlight_kernels.hpp>
+#include <fogbeam/render/fog_light.hpp>
+#include <fogbeam/render/lamp_effects.hpp>
+#include <fogbeam/render/surface_shading.hpp>
+#include <fogbeam/scene/scene.hpp>
+#include <fogbeam/util/thread_pool.hpp>
+
+#include <boost/math/quadrature/gauss_kronrod.hpp>
+#include "test_media.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+
+namespace fogbeam {
+namespace {
+
+using test::hgFog;
+
+// Single scattering of a 1 cd isotropic lamp at distance T (K_t = 1 /m) along the ray at θ from
+// it, integrated in the distance s along the ray: ∫ p(cos χ) e^{−s − r} / r² ds, r the distance
+// from the scattering point to the lamp and χ the scattering angle. Gauss–Kronrod on [0, ∞),
+// split where the ray passes the lamp (the integrand's peak).
+double order1AlongTheRay(const Phase& phase, double T, double theta) {
+  const double ct = std::cos(theta), st = std::sin(theta);
+  auto f = [&](double s) {
+    const double px = s * ct - T, py = s * st;  // point − lamp, lamp at (T, 0)
+    const double r = std::sqrt(px * px + py * py);
+    // Light goes lamp → point (direction (px, py)/r) → eye (direction −(ct, st)).
+    const double cosChi = -(px * ct + py * st) / r;
+    return evalPhase(phase, cosChi) * std::exp(-s - r) / (r * r);
+  };
+  using GK = boost::math::quadrature::gauss_kronrod<double, 31>;
+  const double sPass = std::max(T * ct, 0.0);
+  double sum = 0.0;
+  double a = 0.0;
+  for (double b : {0.5 * sPass, sPass, sPass + 0.5 * T * st + 1e-3, sPass + 40.0}) {
+    if (b > a) sum += GK::integrate(f, a, b, 12, 1e-11);
+    a = std::max(a, b);
+  }
+  return sum;
+}
+
+TEST(FogLight, OrderOneOverTheEmissionBinsIsTheSingleScatteringAlongTheRay) {
+  for (const Phase& phase : {makeHenyeyGreenstein(0.85).value(), makeFogMie(10.0).value(), Phase{IsotropicPhase{}}}) {
+    const auto ms = shippedMultipleScatteringTable(makeHenyeyGreenstein(0.85).value());
+    ASSERT_NE(ms, nullptr);
+    const std::vector<double>& edges = ms->emissionEdges();
+    for (double T : {0.05, 0.5, 3.0, 12.0}) {
+      for (double thetaDeg : {0.3, 2.0, 15.0, 60.0, 120.0, 170.0}) {
+        const double theta = thetaDeg * kPi / 180.0;
+        double sum = 0.0;
+        for (std::size_t k = 0; k + 1 < edges.size(); ++k) sum += fogLightOrder1(phase, T, theta, edges[k], edges[k + 1]);
+        const double whole = fogLightOrder1(phase, T, theta, 0.0, kPi);
+        const double ref = order1AlongTheRay(phase, T, theta);
+        EXPECT_NEAR(sum, whole, 1e-8 * whole) << describe(phase) << " T " << T << " θ " << thetaDeg;
+        EXPECT_NEAR(whole, ref, 1e-4 * ref) << describe(phase) << " T " << T << " θ " << thetaDeg;
+      }
+    }
+  }
+}
+
+// The table's l ≤ 2 expansion against the exact hemispherical integral of the same radiance
+// (scatteredIrradiance: order 1 from the F table, orders ≥ 2 from the multiple-scattering table),
+// for an isotropic lamp: the truncation of the clamped cosine's expansion is the error.
+TEST(FogLight, TheZonalTableFollowsTheExactIrradianceOfAnIsotropicLamp) {
+  ThreadPool pool(2);
+  for (double albedo : {1.0, 0.9}) {
+    const Medium fog = hgFog(0.06, albedo);
+    const auto ms = shippedMultipleScatteringTable(fog.phase);
+    ASSERT_NE(ms, nullptr);
+    const auto iso = kernels::IsoTable::get(fog.phase);
+    const auto table = FogLightTable::get(ms, fog.phase, albedo, &pool).value();
+    std::printf("albedo %.2f: built in %.2f s\n", albedo, table->buildSeconds());
+    const std::vector<double> ones(table->bins(), 1.0);
+    double worst = 0.0;
+    for (double R : {0.5, 3.0, 8.0, 20.0, 45.0, 120.0}) {
+      const double kt = fog.extinction_per_m, T = kt * R;
+      const double top = scatteredIrradiance(*ms, *iso, fog, R, 1.0).value().single +
+                         scatteredIrradiance(*ms, *iso, fog, R, 1.0).value().multiple;
+      for (double mu : {1.0, 0.7, 0.3, 0.1, 0.03, 0.0, -0.4, -1.0}) {
+        const auto exact = scatteredIrradiance(*ms, *iso, fog, R, mu).value();
+        const double e = exact.single + exact.multiple;
+        const double model = kt * kt * table->irradiance(T, mu, ones.data());
+        const double rel = std::abs(model - e) / top;
+        worst = std::max(worst, rel);
+        std::printf("  R %6.1f m (T %.3f) mu %5.2f: exact %.5g, zonal %.5g lux per cd (%+.2f %%, %+.2f %% of E(1))\n", R,
+                    T, mu, e, model, 100.0 * (model - e) / e, 100.0 * (model - e) / top);
+        EXPECT_LT(rel, 0.05) << "R " << R << " mu " << mu;
+      }
+    }
+    std::printf("albedo %.2f: worst %.2f %% of the irradiance facing the lamp\n", albedo, 100.0 * worst);
+  }
+}
+
+TEST(FogLight, AnnulusMapsHoldTheAnnulusMeans) {
+  const auto ms = shippedMultipleScatteringTable(makeHenyeyGreenstein(0.85).value());
+  ASSERT_NE(ms, nullptr);
+  const std::vector<double>& edges = ms->emissionEdges();
+  const std::size_t bins = edges.size() - 1;
+  ThreadPool pool(2);
+  // Isotropic: every annulus holds the intensity.
+  const auto iso = makeProfile(IsotropicProfile{250.0}).value();
+  const auto isoMap = AnnulusMeanMap::build(*iso, edges, false, &pool);
+  std::vector<double> got(bins), want(bins);
+  isoMap->lookup(glm::normalize(Vec3(0.3, -0.5, 0.8)), got.data());
+  for (double v : got) EXPECT_NEAR(v, 250.0, 1e-3);
+  // A low beam: at a node exactly the direct means; between nodes within the bilinear blend's
+  // reach of them (every bin here is at least 3° wide, the grid step).
+  const auto beam =
+      loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
+  const auto map = AnnulusMeanMap::build(*beam, edges, false, &pool);
+  const double d = kPi / 180.0;
+  double worst = 0.0, scale = 0.0;
+  for (double aDeg : {0.0, 6.0, 13.0, 30.0, 93.0, 171.0}) {
+    for (double bDeg : {0.0, 87.0, 180.0, 270.0}) {
+      const Vec3 w{std::cos(aDeg * d), std::sin(aDeg * d) * std::cos(bDeg * d), std::sin(aDeg * d) * std::sin(bDeg * d)};
+      map->lookup(w, got.data());
+      annulusMeans(*beam, w, edges.data(), bins, want.data(), false, 2);
+      for (std::size_t k = 0; k < bins; ++k) EXPECT_NEAR(got[k], want[k], 1e-5 * want[k] + 1e-3) << aDeg << " " << bDeg;
+    }
+  }
+  for (double aDeg : {0.5, 1.3, 2.5, 4.5, 10.5, 22.7, 46.5}) {
+    for (double bDeg : {1.5, 88.5, 180.9, 271.5}) {
+      const Vec3 w{std::cos(aDeg * d), std::sin(aDeg * d) * std::cos(bDeg * d), std::sin(aDeg * d) * std::sin(bDeg * d)};
+      map->lookup(w, got.data());
+      annulusMeans(*beam, w, edges.data(), bins, want.data(), false, 2);
+      for (std::size_t k = 0; k < bins; ++k) {
+        if (std::abs(got[k] - want[k]) > worst) std::printf("  bin %zu at %.1f, %.1f: %.4g against %.4g cd\n", k, aDeg, bDeg, got[k], want[k]);
+        worst = std::max(worst, std::abs(got[k] - want[k]));
+        scale = std::max(scale, want[k]);
+      }
+    }
+  }
+  std::printf("low beam, between nodes: largest difference %.4g cd of a largest mean %.4g cd\n", worst, scale);
+  EXPECT_LT(worst, 0.06 * scale);
+}
+
+// The per-lamp coefficients of a frame are each lamp's irradiance from the table.
+TEST(FogLight, TheCoefficientsAreEachLampsIrradiance) {
+  const Medium fog = hgFog(0.05);
+  const auto ms = shippedMultipleScatteringTable(fog.phase);
+  ThreadPool pool(2);
+  const auto table = FogLightTable::get(ms, fog.phase, 1.0, &pool).value();
+  const auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
+  const auto map = AnnulusMeanMap::build(*beam, table->edges(), false, &pool);
+  FogLightFrame frame;
+  frame.extinction = fog.extinction_per_m;
+  frame.table = table.get();
+  FogLightFrame::Lamp street;
+  street.pos = Vec3(12.0, 3.0, 6.0);
+  street.i0 = 4000.0;
+  FogLightFrame::Lamp low;
+  low.pos = Vec3(1.5, 0.7, -0.6);
+  low.map = map.get();
+  low.lampFromWorld = glm::transpose(Mat3(Vec3(0.96, 0.28, 0.0), Vec3(-0.28, 0.96, 0.0), Vec3(0.0, 0.0, 1.0)));
+  FogLightFrame::Lamp far;  // K_t r > 32: nothing
+  far.pos = Vec3(900.0, 0.0, 0.0);
+  far.i0 = 1e6;
+  frame.lamps = {street, low, far};
+  const Vec3 x(15.0, -1.0, -1.2);
+  std::vector<float> s(4 * frame.lamps.size());
+  const double nearest = fogLightCoefficients(frame, x, s.data());
+  EXPECT_NEAR(nearest, glm::length(street.pos - x), 1e-12);
+  for (int q = 0; q < 4; ++q) EXPECT_EQ(s[8 + static_cast<std::size_t>(q)], 0.0f);
+  for (const Vec3& n0 : {Vec3(0, 0, 1), Vec3(-0.6, 0, 0.8), Vec3(0, 1, 0), Vec3(0.3, -0.2, -0.9)}) {
+    const Vec3 n = glm::normalize(n0);
+    for (std::size_t l = 0; l < 2; ++l) {
+      const auto& L = frame.lamps[l];
+      const Vec3 toLamp = glm::normalize(L.pos - x);
+      std::vector<double> means(table->bins(), L.i0);
+      if (L.map != nullptr) L.map->lookup(L.lampFromWorld * -toLamp, means.data());
+      const double kt = fog.extinction_per_m;
+      const double want = kt * kt * table->irradiance(kt * glm::length(L.pos - x), glm::dot(n, toLamp), means.data());
+      const float got = fogLightIrradiance(&s[4 * l], static_cast<float>(glm::dot(n, toLamp)));
+      EXPECT_NEAR(got, want, 1e-5 * want + 1e-9) << l;
+      EXPECT_GT(want, 0.0);
+    }
+  }
+}
+
+// The surface layer's fog light on the bench scene (planes and the bonnet, the driver's low beams,
+// five street lamps; CPU shading): interpolated between the coarse nodes against every pixel
+// evaluated, and its share of the surfaces' light.
+TEST(FogLight, TheSurfaceLayerInterpolatesItsCoarseNodes) {
+  Scene scene = loadScene(std::string(FOGBEAM_CONFIG_DIR) + "/scenes/bench.toml").value();
+  scene.camera.width = 640;
+  scene.camera.height = 360;
+  scene.effects.glow.enabled = true;
+  scene.effects.glow.surfaces = true;
+  ThreadPool pool(2);
+  SurfaceShader shader;
+  kernels::ShadeFrame frame;
+  SurfaceBuffers on, exact, off;
+  shader.render(scene, frame, on, &pool);
+  ASSERT_NE(frame.fog_light.table, nullptr);
+  frame.fog_light_exact = true;
+  shader.render(scene, frame, exact, &pool);
+  frame.fog_light_exact = false;
+  scene.effects.glow.surfaces = false;
+  shader.render(scene, frame, off, &pool);
+  EXPECT_EQ(frame.fog_light.table, nullptr);
+  // The fog light alone (green channel), interpolated and exact.
+  const std::size_t n = off.distance.size();
+  std::vector<double> fe, err;
+  double sumFog = 0.0, sumDirect = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(off.distance[i])) continue;
+    const double direct = off.rgb[3 * i + 1], e = double(exact.rgb[3 * i + 1]) - direct, f = double(on.rgb[3 * i + 1]) - direct;
+    EXPECT_EQ(on.distance[i], off.distance[i]);
+    fe.push_back(e);
+    sumFog += e;
+    sumDirect += direct;
+    err.push_back(f - e);
+  }
+  std::vector<double> sorted = fe;
+  std::sort(sorted.begin(), sorted.end());
+  const double p995 = sorted[static_cast<std::size_t>(0.995 * static_cast<double>(sorted.size() - 1))];
+  std::vector<double> rel;
+  for (std::size_t i = 0; i < fe.size(); ++i)
+    if (fe[i] > 0.01 * p995) rel.push_back(std::abs(err[i]) / fe[i]);
+  std::sort(rel.begin(), rel.end());
+  ASSERT_FALSE(rel.empty());
+  const double p95 = rel[static_cast<std::size_t>(0.95 * static_cast<double>(rel.size() - 1))], worst = rel.back();
+  std::printf("fog light: %.1f %% of the surfaces' light (sum over pixels); interpolated against every pixel: p95 "
+              "%.2e, max %.2e over %zu pixels\n",
+              100.0 * sumFog / (sumFog + sumDirect), p95, worst, rel.size());
+  // What it costs (printed, not judged: timings belong to `fogbeam bench`).
+  auto median = [&](bool fogLight) {
+    scene.effects.glow.surfaces = fogLight;
+    std::vector<double> ms;
+    for (int k = 0; k < 7; ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      shader.render(scene, frame, off, &pool);
+      ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    std::sort(ms.begin(), ms.end());
+    return ms[3];
+  };
+  const double withMs = median(true), withoutMs = median(false);
+  std::printf("surface layer %dx%d: %.2f ms with the fog light, %.2f ms without\n", scene.camera.width,
+              scene.camera.height, withMs, withoutMs);
+  EXPECT_GT(sumFog, 0.02 * sumDirect);
+  // The grid's tolerance is 1 % of the lamps' irradiance at its probes, or 1e-3 of the frame's
+  // largest as the eye sees it (far away, where a pixel row spans metres of road).
+  EXPECT_LT(p95, 0.01);
+  EXPECT_LT(worst, 0.05);
+}
+
+}  // namespace
+}  // namespace fogbeam
