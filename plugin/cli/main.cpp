@@ -145,7 +145,7 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
                   "driver's disability glare (CIE 146 veiling luminance): on | off (default: the scene's [glare])")
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_option("--fog-light", o->fogLight,
-                  "the fog's scattered light on the surfaces (with the glow on; where the CPU lights the surfaces): "
+                  "the fog's scattered light on the surfaces (with the glow on): "
                   "on | off (default: the scene's [glow] surfaces)")
       ->check(CLI::IsMember({"on", "off"}));
   sub->add_option("--airlight", o->airlightDevice,

@@ -615,16 +615,24 @@ std::pair<std::unique_ptr<GlSurfacePass>, std::unique_ptr<GlSurfacePass>> passes
   return {std::move(gpu).value(), std::move(cpu).value()};
 }
 
-TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
+/// The shipped bench scene at width × height without its bonnet, its lamps coloured so that every
+/// channel differs.
+Scene colouredBenchRoad(int width, int height) {
   auto loaded = loadScene(std::string(FOGBEAM_CONFIG_DIR) + "/scenes/bench.toml");
-  ASSERT_TRUE(loaded.has_value()) << loaded.error().message;
-  Scene scene = *loaded;
-  scene.camera.width = 480;
-  scene.camera.height = 270;
-  scene.fog.ambient_cd_m2 = 0.02;
+  EXPECT_TRUE(loaded.has_value()) << loaded.error().message;
+  Scene scene = loaded.has_value() ? *loaded : Scene{};
+  scene.camera.width = width;
+  scene.camera.height = height;
   scene.body.clear();  // the bonnet: its own test below (rasterised vs cast, distances within rounding)
   for (std::size_t i = 0; i < scene.lamps.size(); ++i)
     scene.lamps[i].lamp.color = Vec3(1.0, 0.8 + 0.05 * static_cast<double>(i), 0.6);
+  return scene;
+}
+
+TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
+  Scene scene = colouredBenchRoad(480, 270);
+  ASSERT_FALSE(scene.lamps.empty());
+  scene.fog.ambient_cd_m2 = 0.02;
   auto [gpu, cpu] = passesShadingBothWays();
   if (!gpu || !cpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << skipReason();
   SurfaceBuffers a, b;
@@ -650,6 +658,37 @@ TEST(GlSurfaceShading, CpuShadingMatchesTheShadersOnTheBenchRoad) {
   std::printf("shading on the CPU: %.2f ms for %dx%d (readback %.2f ms)\n", cpu->stats().shade_ms,
               scene.camera.width, scene.camera.height, cpu->stats().readback_ms);
   dumpOnFailure("shading_cpu_vs_gpu", b, a);
+}
+
+// (7b) The fog's scattered light on the surfaces ([glow] surfaces): per pixel in the shaders, over
+// the CPU shading's adaptive grid from the geometry buffer; the same model (render/fog_light.hpp).
+TEST(GlSurfaceShading, TheShadersLightTheFogLightAsTheCpuShadingDoes) {
+  Scene scene = colouredBenchRoad(240, 135);
+  ASSERT_FALSE(scene.lamps.empty());
+  scene.effects.glow.enabled = true;
+  scene.effects.glow.surfaces = true;
+  auto [gpu, cpu] = passesShadingBothWays();
+  if (!gpu || !cpu) GTEST_SKIP() << "no usable EGL/OpenGL: " << skipReason();
+  SurfaceBuffers a, b, without;
+  ASSERT_TRUE(gpu->render(scene, a).has_value());
+  ASSERT_TRUE(cpu->render(scene, b).has_value());
+  Scene off = scene;
+  off.effects.glow.surfaces = false;
+  ASSERT_TRUE(gpu->render(off, without).has_value());
+  EXPECT_EQ(a.distance, b.distance);
+  double peak = 0.0, with = 0.0, direct = 0.0;
+  for (float v : a.rgb) peak = std::max(peak, static_cast<double>(v));
+  for (std::size_t k = 0; k < a.rgb.size(); ++k) {
+    with += static_cast<double>(a.rgb[k]);
+    direct += static_cast<double>(without.rgb[k]);
+  }
+  std::printf("the fog light adds %.1f %% to the surfaces' light (shaders)\n", 100.0 * (with / direct - 1.0));
+  EXPECT_GT(with, 1.05 * direct);
+  const ErrorStats s = stats(luminanceErrors(b, a, 1e-3 * peak));
+  print("bench road with the fog light, shading on the CPU (grid) vs the shaders (per pixel)", s);
+  EXPECT_GT(s.n, 8000u);
+  EXPECT_LT(s.p99, 1e-2);
+  EXPECT_LT(s.max, 5e-2);
 }
 
 // (8) The ego car's bonnet (Scene::body): the shaders and the CPU shading agree, its distances

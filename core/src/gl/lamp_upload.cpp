@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <variant>
 
 namespace fogbeam::gl {
@@ -33,14 +34,57 @@ void setVec(float (&dst)[4], const Vec3& v, double w = 0.0) {
 
 }  // namespace
 
-LampUpload::LampUpload() : lampSsbo_(genBuffer()), profileBuffer_(genBuffer()), profileTex_(genTexture()) {
+LampUpload::LampUpload()
+    : lampSsbo_(genBuffer()), profileBuffer_(genBuffer()), profileTex_(genTexture()), fogBuffer_(genBuffer()),
+      fogTex_(genTexture()) {
   // One texel to start with: a buffer texture over an empty buffer is not valid everywhere.
   const float zero = 0.0f;
-  glBindBuffer(GL_TEXTURE_BUFFER, profileBuffer_.get());
-  glBufferData(GL_TEXTURE_BUFFER, sizeof zero, &zero, GL_DYNAMIC_DRAW);
-  glBindTexture(GL_TEXTURE_BUFFER, profileTex_.get());
-  glTexBuffer(GL_TEXTURE_BUFFER, GL_R32F, profileBuffer_.get());
+  for (auto [buffer, texture] : {std::pair{profileBuffer_.get(), profileTex_.get()}, std::pair{fogBuffer_.get(), fogTex_.get()}}) {
+    glBindBuffer(GL_TEXTURE_BUFFER, buffer);
+    glBufferData(GL_TEXTURE_BUFFER, sizeof zero, &zero, GL_DYNAMIC_DRAW);
+    glBindTexture(GL_TEXTURE_BUFFER, texture);
+    glTexBuffer(GL_TEXTURE_BUFFER, GL_R32F, buffer);
+  }
   glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &maxTextureBufferSize_);
+}
+
+Status LampUpload::ensureFogLight(const FogLightFrame& fog) {
+  lampMaps_.assign(fog.lamps.size(), -1);
+  if (fog.table == nullptr) {
+    fogTable_.reset();
+    return Ok{};
+  }
+  std::vector<std::shared_ptr<const AnnulusMeanMap>>& wanted = fogWanted_;  // kept: a steady frame allocates nothing
+  wanted.clear();
+  for (const FogLightFrame::Lamp& l : fog.lamps)
+    if (l.map_owner && std::find(wanted.begin(), wanted.end(), l.map_owner) == wanted.end()) wanted.push_back(l.map_owner);
+  if (fog.table_owner.get() != fogTable_.get() || wanted != fogMaps_) {
+    const FogLightTable& t = *fog.table_owner;
+    std::vector<float> data(t.dense());
+    fogSums_ = static_cast<int>(data.size());
+    data.insert(data.end(), t.denseSums().begin(), t.denseSums().end());
+    std::vector<std::int32_t> offsets;
+    for (const auto& m : wanted) {
+      offsets.push_back(static_cast<std::int32_t>(data.size()));
+      data.insert(data.end(), m->values().begin(), m->values().end());
+      fogMapRows_ = m->rows();
+      fogMapColumns_ = m->columns();
+    }
+    if (data.size() > static_cast<std::size_t>(maxTextureBufferSize_))
+      return Error{"the fog light needs " + std::to_string(data.size()) +
+                   " texels, more than GL_MAX_TEXTURE_BUFFER_SIZE " + std::to_string(maxTextureBufferSize_)};
+    glBindBuffer(GL_TEXTURE_BUFFER, fogBuffer_.get());
+    glBufferData(GL_TEXTURE_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(), GL_STATIC_DRAW);
+    fogTable_ = fog.table_owner;
+    fogMaps_ = wanted;
+    fogMapOffsets_ = std::move(offsets);
+  }
+  for (std::size_t i = 0; i < fog.lamps.size(); ++i) {
+    const auto it = std::find(fogMaps_.begin(), fogMaps_.end(), fog.lamps[i].map_owner);
+    if (fog.lamps[i].map_owner && it != fogMaps_.end())
+      lampMaps_[i] = fogMapOffsets_[static_cast<std::size_t>(it - fogMaps_.begin())];
+  }
+  return Ok{};
 }
 
 Status LampUpload::ensureProfiles(const Scene& scene) {
@@ -83,6 +127,7 @@ void LampUpload::uploadLamps(const Scene& scene) {
     setVec(g.axisY, l.worldFromLamp[1]);
     setVec(g.axisZ, l.worldFromLamp[2]);
     setVec(g.color, l.color);
+    g.table[3] = i < lampMaps_.size() ? lampMaps_[i] : -1;  // the fog light's annulus map (ensureFogLight)
     std::visit(
         [&](const auto& m) {
           using M = std::decay_t<decltype(m)>;

@@ -9,6 +9,7 @@
 #include "gl_object.hpp"
 
 #include <fogbeam/physics/profile.hpp>
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
@@ -34,12 +35,33 @@ class LampUpload {
   /// The profile buffer texture, for GL_TEXTURE_BUFFER on the shaders' unit 0.
   [[nodiscard]] GLuint profileTexture() const noexcept { return profileTex_.get(); }
 
+  /// The fog light's data for the shaders (`uFogData`, unit 5: the dense table, its sums over the
+  /// bins, then each annulus map the frame's lamps read), uploaded when the table or the set of
+  /// maps changes; `fog.table` null: off. Lamp i of the next uploadLamps() reads the map of
+  /// fog.lamps[i] (its offset in LampGpu.table.w; −1: isotropic, none). Errors: more texels than
+  /// GL_MAX_TEXTURE_BUFFER_SIZE.
+  [[nodiscard]] Status ensureFogLight(const FogLightFrame& fog);
+  [[nodiscard]] GLuint fogTexture() const noexcept { return fogTex_.get(); }
+  /// The shaders' uniforms: bins (0: off), the sums' offset, the maps' rows and columns.
+  [[nodiscard]] int fogBins() const noexcept { return fogTable_ ? static_cast<int>(fogTable_->bins()) : 0; }
+  [[nodiscard]] int fogSums() const noexcept { return fogSums_; }
+  [[nodiscard]] int fogMapRows() const noexcept { return fogMapRows_; }
+  [[nodiscard]] int fogMapColumns() const noexcept { return fogMapColumns_; }
+
  private:
   Buffer lampSsbo_, profileBuffer_;
   Texture profileTex_;
   GLint maxTextureBufferSize_ = 0;
   std::vector<std::shared_ptr<const Profile>> uploaded_;  // tabulated profiles in profileBuffer_, in order
   std::vector<std::int32_t> offsets_;                      // each one's first texel
+  Buffer fogBuffer_;
+  Texture fogTex_;
+  std::shared_ptr<const FogLightTable> fogTable_;            // in fogBuffer_ (null: off)
+  std::vector<std::shared_ptr<const AnnulusMeanMap>> fogMaps_;  // in fogBuffer_, in order
+  std::vector<std::int32_t> fogMapOffsets_;                   // each one's first texel
+  std::vector<std::int32_t> lampMaps_;                        // per lamp of the last ensureFogLight: its map's offset
+  std::vector<std::shared_ptr<const AnnulusMeanMap>> fogWanted_;  // ensureFogLight's scratch
+  int fogSums_ = 0, fogMapRows_ = 0, fogMapColumns_ = 0;
 };
 
 }  // namespace fogbeam::gl

@@ -23,6 +23,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
@@ -115,6 +116,11 @@ struct GlSurfacePass::Impl {
   GLint planeWorldFromCamera = -1, planeFocalPrincipal = -1, planePlaneCount = -1;
   GLint planeExtinction = -1, planeAmbient = -1, planeLampCount = -1;
   GLint meshAnchor = -1, meshClip = -1, meshExtinction = -1, meshAmbient = -1, meshLampCount = -1;
+  // The fog light's uniforms (common_photometry.glsl), per program: bins, sums, map rows, columns.
+  std::array<GLint, 4> planeFog{-1, -1, -1, -1}, meshFog{-1, -1, -1, -1};
+  // With shading in the shaders: the frame's fog light (SurfaceShader::prepare builds its table
+  // and annulus maps; the shaders read them from LampUpload's fog texture).
+  kernels::ShadeFrame gpuFogFrame;
 
   // Geometry: the full-screen triangle has no attributes; the glTF mesh (positions relative to
   // its anchor, float) and the planes (double, relative to the eye).
@@ -157,6 +163,11 @@ struct GlSurfacePass::Impl {
     meshExtinction = glGetUniformLocation(mp, "uExtinction");
     meshAmbient = glGetUniformLocation(mp, "uAmbient");
     meshLampCount = glGetUniformLocation(mp, "uLampCount");
+    const char* fogNames[4] = {"uFogBins", "uFogSums", "uFogMapRows", "uFogMapColumns"};
+    for (std::size_t i = 0; i < 4; ++i) {
+      planeFog[i] = glGetUniformLocation(pp, fogNames[i]);
+      meshFog[i] = glGetUniformLocation(mp, fogNames[i]);
+    }
 
     // The glTF mesh and the body quads share the vertex layout (MeshVertex) and the program.
     for (const auto& [vao, vbo] : {std::pair{meshVao.get(), meshVbo.get()}, std::pair{bodyVao.get(), bodyVbo.get()}}) {
@@ -314,6 +325,16 @@ struct GlSurfacePass::Impl {
     glClearBufferfv(GL_DEPTH, 0, &farDepth);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_BUFFER, lamps.profileTexture());
+    glActiveTexture(GL_TEXTURE5);
+    glBindTexture(GL_TEXTURE_BUFFER, lamps.fogTexture());
+    glActiveTexture(GL_TEXTURE0);
+    const int fogBins = cpuShading ? 0 : lamps.fogBins();  // with shading on the CPU it lights the fog light too
+    auto setFog = [&](const std::array<GLint, 4>& at) {
+      glUniform1i(at[0], fogBins);
+      glUniform1i(at[1], lamps.fogSums());
+      glUniform1i(at[2], lamps.fogMapRows());
+      glUniform1i(at[3], lamps.fogMapColumns());
+    };
 
     if (timer != 0) glBeginQuery(GL_TIME_ELAPSED, timer);
     const auto kt = static_cast<float>(scene.fog.extinction_per_m);
@@ -330,6 +351,7 @@ struct GlSurfacePass::Impl {
       glUniform1f(planeExtinction, kt);
       glUniform1f(planeAmbient, ia);
       glUniform1i(planeLampCount, nLamps);
+      setFog(planeFog);
       glBindVertexArray(emptyVao.get());
       glDrawArrays(GL_TRIANGLES, 0, 3);
     }
@@ -342,6 +364,7 @@ struct GlSurfacePass::Impl {
       glUniform1f(meshExtinction, kt);
       glUniform1f(meshAmbient, ia);
       glUniform1i(meshLampCount, nLamps);
+      setFog(meshFog);
       glBindVertexArray(meshVao.get());
       glDrawArrays(GL_TRIANGLES, 0, meshVertexCount);
     }
@@ -355,6 +378,7 @@ struct GlSurfacePass::Impl {
       glUniform1f(meshExtinction, kt);
       glUniform1f(meshAmbient, ia);
       glUniform1i(meshLampCount, nLamps);
+      setFog(meshFog);
       glBindVertexArray(bodyVao.get());
       glDrawArrays(GL_TRIANGLES, 0, bodyVertexCount);
     }
@@ -374,6 +398,10 @@ struct GlSurfacePass::Impl {
     if (Status s = lamps.ensureProfiles(scene); !s) return s;
     if (airlight.enabled()) {
       if (Status s = airlight.prepare(scene); !s) return s;
+    }
+    if (!cpuShading) {  // the shaders light the fog light too: its table and maps (built once)
+      shader.prepare(scene, gpuFogFrame);
+      if (Status s = lamps.ensureFogLight(gpuFogFrame.fog_light); !s) return s;
     }
     lamps.uploadLamps(scene);
     uploadPlanes(scene);

@@ -25,7 +25,7 @@ constexpr double kDeg = kPi / 180.0;
 // T nodes 2^(kLogFirst + i / kPerOctave), i < kTNodes: 2^(−7) … 2^5.
 constexpr int kPerOctave = 4, kLogFirst = -7, kTNodes = 12 * kPerOctave + 1;
 // The dense table: T = 2^(−7 + i/16) for i ≤ 112 (up to 1), then 1 + (i − 112)/16 up to 32.
-constexpr std::size_t kDenseLog = 7 * 16, kDenseNodes = kDenseLog + 31 * 16 + 1;
+constexpr std::size_t kDenseLog = FogLightTable::kDenseLog, kDenseNodes = FogLightTable::kDenseNodes;
 double denseT(std::size_t i) {
   return i <= kDenseLog ? std::exp2(-7.0 + static_cast<double>(i) / 16.0) : 1.0 + static_cast<double>(i - kDenseLog) / 16.0;
 }
@@ -38,8 +38,9 @@ constexpr std::size_t kThetaNodes = 257;
 // The annulus maps' grid: the angle α from the lamp's axis every 1° up to 24° (a headlamp's
 // beam and cut-off lie within a few degrees of its axis, and the first bins are 3° and 5° wide),
 // then every 3°; the azimuth every 3°.
-constexpr double kMapFine = 1.0 * kDeg, kMapFineEnd = 24.0 * kDeg, kMapStep = 3.0 * kDeg;
-constexpr int kMapFineRows = 24;  // rows below kMapFineEnd
+constexpr double kMapFine = AnnulusMeanMap::kFineDeg * kDeg, kMapStep = AnnulusMeanMap::kStepDeg * kDeg;
+constexpr int kMapFineRows = AnnulusMeanMap::kFineRows;  // rows below kMapFineEnd
+constexpr double kMapFineEnd = kMapFineRows * kMapFine;
 double mapAlpha(std::size_t i) {
   const double fine = static_cast<double>(std::min<std::size_t>(i, kMapFineRows)) * kMapFine;
   return i <= static_cast<std::size_t>(kMapFineRows) ? fine : kMapFineEnd + static_cast<double>(i - kMapFineRows) * kMapStep;

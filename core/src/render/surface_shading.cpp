@@ -112,6 +112,7 @@ const kernels::ShadeTable* SurfaceShader::tableFor(const std::shared_ptr<const P
 void SurfaceShader::prepareFogLight(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool) {
   FogLightFrame& f = frame.fog_light;
   f.table = nullptr;
+  f.table_owner.reset();
   f.lamps.clear();
   const GlowOptions& glow = scene.effects.glow;
   if (!glow.enabled || !glow.surfaces || !(scene.fog.albedo > 0.0) || !(scene.fog.extinction_per_m > 0.0)) return;
@@ -121,6 +122,7 @@ void SurfaceShader::prepareFogLight(const Scene& scene, kernels::ShadeFrame& fra
   if (!table) return;
   fogTable_ = std::move(table).value();
   f.table = fogTable_.get();
+  f.table_owner = fogTable_;
   f.extinction = scene.fog.extinction_per_m;
   const Camera& cam = scene.camera;
   f.lamps.resize(scene.lamps.size());
@@ -130,6 +132,7 @@ void SurfaceShader::prepareFogLight(const Scene& scene, kernels::ShadeFrame& fra
     k.pos = l.position_m - cam.position_m;
     k.lampFromWorld = glm::transpose(l.worldFromLamp);
     k.map = nullptr;
+    k.map_owner.reset();
     k.i0 = 0.0;
     if (const auto* iso = std::get_if<IsotropicProfile>(&l.profile->model())) {
       k.i0 = iso->intensity_cd;
@@ -144,6 +147,7 @@ void SurfaceShader::prepareFogLight(const Scene& scene, kernels::ShadeFrame& fra
       it = std::prev(fogMaps_.end());
     }
     k.map = it->map.get();
+    k.map_owner = it->map;
   }
 }
 

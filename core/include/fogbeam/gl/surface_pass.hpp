@@ -10,7 +10,9 @@
 // d is the true distance along the pixel's ray (metres, +inf for sky, where L_s = I_a).
 // Lighting runs in the fragment shaders, or — GlOptions::shading, by default on software
 // rasterisers such as llvmpipe — on the CPU from a geometry buffer the shaders write (normal, ρ,
-// distance; SurfaceShader, fogbeam/render/surface_shading.hpp), with the same equation.
+// distance; SurfaceShader, fogbeam/render/surface_shading.hpp), with the same equation. With the
+// glow on and `[glow] surfaces`, each lamp's term includes the fog's scattered light
+// (fogbeam/render/fog_light.hpp) in both: per pixel in the shaders, over an adaptive grid on the CPU.
 // Geometry: the scene's infinite planes (ray–plane intersection per pixel in a full-screen
 // fragment shader, in double precision) and the triangles of the scene's glTF 2.0 file
 // (rasterised; glTF (x, y, z) → fogbeam (z, x, y), see docs/surface_pass.md). No shadows.

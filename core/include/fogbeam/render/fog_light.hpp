@@ -89,6 +89,14 @@ class FogLightTable {
   [[nodiscard]] const std::vector<double>& opticalDistances() const noexcept { return t_; }
   [[nodiscard]] double buildSeconds() const noexcept { return buildSeconds_; }
 
+  /// The dense table the frames read, for the shaders (shaders/common_photometry.glsl mirrors
+  /// weighted()): rows at T = 2^(−7 + i/16) for i ≤ kDenseLog, then 1 + (i − kDenseLog)/16 up
+  /// to 32; row i holds bins() × 4 floats (κ, c0, c1, c2 per bin), denseSums() row i their 4
+  /// sums over the bins.
+  static constexpr std::size_t kDenseLog = 7 * 16, kDenseNodes = kDenseLog + 31 * 16 + 1;
+  [[nodiscard]] const std::vector<float>& dense() const noexcept { return dense_; }
+  [[nodiscard]] const std::vector<float>& denseSums() const noexcept { return denseSum_; }
+
  private:
   FogLightTable() = default;
   void smoothCoefficients(double opticalDistance, double* c) const noexcept;  // from the build nodes
@@ -120,6 +128,16 @@ class AnnulusMeanMap {
   void lookup(const Vec3& w, float* out) const noexcept;
   [[nodiscard]] std::size_t bins() const noexcept { return bins_; }
 
+  /// The grid, for the shaders: rows of the angle α from the axis every kFineDeg up to
+  /// kFineRows · kFineDeg, then every kStepDeg to 180°; columns of the azimuth atan2(z, y) every
+  /// kStepDeg over 0 … 360° (the last repeats the first); values()[(row · columns() + column) ·
+  /// bins() + k].
+  static constexpr double kFineDeg = 1.0, kStepDeg = 3.0;
+  static constexpr int kFineRows = 24;
+  [[nodiscard]] int rows() const noexcept { return nA_; }
+  [[nodiscard]] int columns() const noexcept { return nB_; }
+  [[nodiscard]] const std::vector<float>& values() const noexcept { return v_; }
+
  private:
   AnnulusMeanMap() = default;
   template <class T>
@@ -136,9 +154,11 @@ struct FogLightFrame {
     Mat3 lampFromWorld{1.0};
     double i0 = 0.0;      ///< isotropic intensity (map null), cd
     const AnnulusMeanMap* map = nullptr;
+    std::shared_ptr<const AnnulusMeanMap> map_owner;  ///< keeps `map` alive (the GL upload holds it)
   };
   double extinction = 0.0;  ///< K_t, 1/m
   const FogLightTable* table = nullptr;
+  std::shared_ptr<const FogLightTable> table_owner;  ///< keeps `table` alive
   std::vector<Lamp> lamps;
 };
 

@@ -33,7 +33,7 @@ struct GlowOptions {
   double fade_in = 2.0;
   /// The fog's scattered light on the surfaces (fogbeam/render/fog_light.hpp): orders 1 and up of
   /// every lamp's light, scattered onto the surfaces by the fog around them, added to the surface
-  /// layer where the CPU lights it. Needs a multiple-scattering table for the fog's phase function.
+  /// layer (CPU or GPU shading). Needs a multiple-scattering table for the fog's phase function.
   bool surfaces = true;
 };
 
