@@ -149,13 +149,15 @@ float lampIntensity(LampGpu L, vec3 wWorld) {
 
 // The fog's scattered light on a surface element (render/fog_light.hpp; the CPU's
 // FogLightTable::weighted and AnnulusMeanMap::lookup, per pixel here where the CPU blends them
-// over an adaptive grid): E_fog = s0 μ⁺ + s1 + s2 μ + s3 P₂(μ) lux, μ = cos(incidence), s the
-// lamp's coefficients at optical distance T = K_t r: K_t² Σ_k Ī_k (κ, c0, c1, c2)_k(T), Ī_k the
-// lamp's annulus means about its direction to the point. uFogData (R32F): the dense table
-// [row][bin][4] from texel 0 (rows at T = 2^(−7 + i/16) up to 1, then every 1/16 to 32), its sums
-// over the bins [row][4] from uFogSums, then the lamps' annulus maps (LampGpu.table.w; −1: an
-// isotropic lamp, I₀ = params.x): rows of the angle from the lamp's axis every 1° to 24°, then
-// every 3°; uFogMapColumns azimuths every 3°; uFogBins values each. uFogBins = 0: off.
+// over an adaptive grid): E_fog = Σ_q b_q(μ) (s_q + D_q · n) lux, b = (μ⁺, 1, μ, P₂(μ)),
+// μ = cos(incidence), s the lamp's coefficients at optical distance T = K_t r:
+// K_t² Σ_k Ī_k (κ, c0, c1, c2)_k(T), and D_q = K_t² Σ_k Ī₁_k g_kq(T) its dipoles (Ī_k, Ī₁_k the
+// lamp's annulus means and first harmonics about its direction to the point). uFogData (R32F):
+// the dense table [row][bin][8] (κ, c0, c1, c2, g0 … g3) from texel 0 (rows at T = 2^(−7 + i/16)
+// up to 1, then every 1/16 to 32), its sums of the first 4 over the bins [row][4] from uFogSums,
+// then the lamps' annulus maps (LampGpu.table.w; −1: an isotropic lamp, I₀ = params.x): rows of
+// the angle from the lamp's axis every 0.5° to 24°, then every 3°; uFogMapColumns azimuths every
+// 3°; uFogBins × 4 values each (the mean, the harmonic in the lamp frame). uFogBins = 0: off.
 layout(binding = 5) uniform samplerBuffer uFogData;
 uniform int uFogBins;
 uniform int uFogSums;
@@ -166,44 +168,55 @@ const int FOG_DENSE_NODES = 609;
 const float FOG_T_FIRST = 0.0078125;
 const float FOG_T_LAST = 32.0;
 const float FOG_DEG = 0.0174532925199433;
+// AnnulusMeanMap::kFineDeg, kFineRows: rows every 0.5° up to 24°.
+const float FOG_FINE = 0.5 * FOG_DEG;
+const float FOG_FINE_ROWS = 48.0;
+const float FOG_FINE_END = FOG_FINE_ROWS * FOG_FINE;
 
 float fogValue(int i) { return texelFetch(uFogData, i).r; }
 vec4 fogRow4(int i) { return vec4(fogValue(i), fogValue(i + 1), fogValue(i + 2), fogValue(i + 3)); }
 
 // E_fog [lux] of lamp L at distance r [m] from the point, wWorld the unit direction from the lamp
-// to the point, mu the cosine of the incidence (any sign: the fog lights both sides).
-float fogLight(LampGpu L, vec3 wWorld, float r, float mu) {
+// to the point, mu the cosine of the incidence (any sign: the fog lights both sides), n the
+// element's unit normal (world).
+float fogLight(LampGpu L, vec3 wWorld, float r, float mu, vec3 n) {
   float T = uExtinction * r;
   if (uFogBins == 0 || !(T > 0.0) || T > FOG_T_LAST) return 0.0;
   float x = T < 1.0 ? max(0.0, (log2(T) + 7.0) * 16.0) : float(FOG_DENSE_LOG) + (T - 1.0) * 16.0;
   int i0 = min(int(x), FOG_DENSE_NODES - 2);
   float t = min(x - float(i0), 1.0);
   vec4 s = vec4(0.0);
+  vec4 dn = vec4(0.0);  // D_q · n, q = 0 … 3 (lamp frame, before the K_t² scale)
   int map = L.table.w;
   if (map < 0) {
     s = L.params.x * mix(fogRow4(uFogSums + 4 * i0), fogRow4(uFogSums + 4 * (i0 + 1)), t);
   } else {
     vec3 w = vec3(dot(L.axisX.xyz, wWorld), dot(L.axisY.xyz, wWorld), dot(L.axisZ.xyz, wWorld));
+    vec3 nl = vec3(dot(L.axisX.xyz, n), dot(L.axisY.xyz, n), dot(L.axisZ.xyz, n));
     float alpha = atan(length(w.yz), w.x);
     float beta = atan2Safe(w.z, w.y);
     if (beta < 0.0) beta += TWO_PI;
-    float row = alpha < 24.0 * FOG_DEG ? alpha / FOG_DEG : 24.0 + (alpha - 24.0 * FOG_DEG) / (3.0 * FOG_DEG);
+    float row = alpha < FOG_FINE_END ? alpha / FOG_FINE : FOG_FINE_ROWS + (alpha - FOG_FINE_END) / (3.0 * FOG_DEG);
     float col = beta / (3.0 * FOG_DEG);
     row = clamp(row, 0.0, float(uFogMapRows - 1));
     col = clamp(col, 0.0, float(uFogMapColumns - 1));
     int ia = min(int(row), uFogMapRows - 2), ib = min(int(col), uFogMapColumns - 2);
     float u = row - float(ia), v = col - float(ib);
-    int p00 = map + (ia * uFogMapColumns + ib) * uFogBins;
-    int p10 = p00 + uFogMapColumns * uFogBins;
-    int ra = i0 * uFogBins * 4, rb = ra + uFogBins * 4;
+    int node = uFogBins * 4;
+    int p00 = map + (ia * uFogMapColumns + ib) * node;
+    int p10 = p00 + uFogMapColumns * node;
+    int ra = i0 * uFogBins * 8, rb = ra + uFogBins * 8;
     for (int k = 0; k < uFogBins; ++k) {
-      float m = (1.0 - u) * ((1.0 - v) * fogValue(p00 + k) + v * fogValue(p00 + uFogBins + k)) +
-                u * ((1.0 - v) * fogValue(p10 + k) + v * fogValue(p10 + uFogBins + k));
-      s += m * mix(fogRow4(ra + 4 * k), fogRow4(rb + 4 * k), t);
+      vec4 m = (1.0 - u) * ((1.0 - v) * fogRow4(p00 + 4 * k) + v * fogRow4(p00 + node + 4 * k)) +
+               u * ((1.0 - v) * fogRow4(p10 + 4 * k) + v * fogRow4(p10 + node + 4 * k));
+      vec3 h = m.yzw - dot(m.yzw, w) * w;  // perpendicular to w, as AnnulusMeanMap::lookup
+      s += m.x * mix(fogRow4(ra + 8 * k), fogRow4(rb + 8 * k), t);
+      dn += dot(h, nl) * mix(fogRow4(ra + 8 * k + 4), fogRow4(rb + 8 * k + 4), t);
     }
   }
-  s *= uExtinction * uExtinction * (T < FOG_T_FIRST ? FOG_T_FIRST / T : 1.0);
-  return max(s.x * max(mu, 0.0) + s.y + s.z * mu + s.w * (1.5 * mu * mu - 0.5), 0.0);
+  float scale = uExtinction * uExtinction * (T < FOG_T_FIRST ? FOG_T_FIRST / T : 1.0);
+  vec4 c = scale * (s + dn);
+  return max(c.x * max(mu, 0.0) + c.y + c.z * mu + c.w * (1.5 * mu * mu - 0.5), 0.0);
 }
 
 // L(S) [cd/m², rgb] of a Lambertian point p (camera-relative, m) with unit normal n facing the
@@ -218,7 +231,7 @@ vec3 surfaceLuminance(vec3 p, vec3 n, vec3 rho) {
     float r = sqrt(r2);
     vec3 w = toPoint / r;
     float cosInc = -dot(w, n);  // light arrives against the normal
-    float e = fogLight(lamps[k], w, r, cosInc);  // lux
+    float e = fogLight(lamps[k], w, r, cosInc, n);  // lux
     if (cosInc > 0.0) e += lampIntensity(lamps[k], w) * cosInc * exp(-uExtinction * r) / r2;
     sum += lamps[k].color.rgb * e;
   }

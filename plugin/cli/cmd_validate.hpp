@@ -50,6 +50,8 @@ struct ValidateOptions {
   bool path_tracer = false;
   /// --pt-samples: paths per ring (and for the whole frame) and case (default 20 000).
   int pt_samples = 20000;
+  /// --pt-road-only: of the path-tracer comparisons only the road's (the fog light, issue 18).
+  bool pt_road_only = false;
   /// --pt-out: CSV of the ring figures (one row per case and ring); empty (default): none.
   std::string pt_out;
   /// --pt-pictures: a folder to write pictures of fogbeam (single, single + glow) beside the

@@ -87,6 +87,8 @@ void addValidateCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--pt-samples", opts->pt_samples,
                   "--path-tracer: paths per ring and case (default 20000; the error falls as 1/sqrt)")
       ->check(CLI::Range(100, 100000000));
+  sub->add_flag("--pt-road-only", opts->pt_road_only,
+                "--path-tracer: only the scattered light on the road (the fog light), not the rings");
   sub->add_option("--pt-out", opts->pt_out,
                   "--path-tracer: write the ring figures as CSV (one row per case and ring; luminances in cd/m2)");
   sub->add_option("--pt-pictures", opts->pt_pictures,

@@ -2,6 +2,8 @@
 // bin against a quadrature along the ray, the zonal table against the exact hemispherical
 // integral of scatteredIrradiance, the annulus maps against direct annulus means, and the
 // quadratic form against the table.
+#include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/math.hpp>
 #include <fogbeam/physics/medium.hpp>
 #include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
@@ -12,6 +14,7 @@
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
+#include <boost/math/quadrature/gauss.hpp>
 #include <boost/math/quadrature/gauss_kronrod.hpp>
 #include "test_media.hpp"
 
@@ -124,29 +127,105 @@ TEST(FogLight, AnnulusMapsHoldTheAnnulusMeans) {
       loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
   const auto map = AnnulusMeanMap::build(*beam, edges, false, &pool);
   const double d = kPi / 180.0;
-  double worst = 0.0, scale = 0.0;
+  std::vector<double> gotH(3 * bins);
+  std::vector<Vec3> wantH(bins);
   for (double aDeg : {0.0, 6.0, 13.0, 30.0, 93.0, 171.0}) {
     for (double bDeg : {0.0, 87.0, 180.0, 270.0}) {
       const Vec3 w{std::cos(aDeg * d), std::sin(aDeg * d) * std::cos(bDeg * d), std::sin(aDeg * d) * std::sin(bDeg * d)};
-      map->lookup(w, got.data());
-      annulusMeans(*beam, w, edges.data(), bins, want.data(), false, 2);
-      for (std::size_t k = 0; k < bins; ++k) EXPECT_NEAR(got[k], want[k], 1e-5 * want[k] + 1e-3) << aDeg << " " << bDeg;
+      map->lookup(w, got.data(), gotH.data());
+      annulusMeans(*beam, w, edges.data(), bins, want.data(), false, 2, wantH.data());
+      for (std::size_t k = 0; k < bins; ++k) {
+        EXPECT_NEAR(got[k], want[k], 1e-5 * want[k] + 1e-3) << aDeg << " " << bDeg;
+        for (int e = 0; e < 3; ++e)
+          EXPECT_NEAR(gotH[3 * k + static_cast<std::size_t>(e)], wantH[k][e], 1e-5 * want[k] + 1e-3) << aDeg << " " << bDeg;
+        // The harmonic is perpendicular to the axis and no larger than twice the mean (I ≥ 0).
+        EXPECT_NEAR(glm::dot(wantH[k], w), 0.0, 1e-9 * (want[k] + 1.0));
+        EXPECT_LE(glm::length(wantH[k]), 2.0 * want[k] + 1e-9);
+      }
     }
   }
+  double worst = 0.0, worstH = 0.0, scale = 0.0, scaleH = 0.0;
   for (double aDeg : {0.5, 1.3, 2.5, 4.5, 10.5, 22.7, 46.5}) {
     for (double bDeg : {1.5, 88.5, 180.9, 271.5}) {
       const Vec3 w{std::cos(aDeg * d), std::sin(aDeg * d) * std::cos(bDeg * d), std::sin(aDeg * d) * std::sin(bDeg * d)};
-      map->lookup(w, got.data());
-      annulusMeans(*beam, w, edges.data(), bins, want.data(), false, 2);
+      map->lookup(w, got.data(), gotH.data());
+      annulusMeans(*beam, w, edges.data(), bins, want.data(), false, 2, wantH.data());
       for (std::size_t k = 0; k < bins; ++k) {
         if (std::abs(got[k] - want[k]) > worst) std::printf("  bin %zu at %.1f, %.1f: %.4g against %.4g cd\n", k, aDeg, bDeg, got[k], want[k]);
         worst = std::max(worst, std::abs(got[k] - want[k]));
+        const Vec3 h(gotH[3 * k], gotH[3 * k + 1], gotH[3 * k + 2]);
+        EXPECT_NEAR(glm::dot(h, w), 0.0, 1e-5 * (want[k] + 1.0));
+        if (glm::length(h - wantH[k]) > worstH)
+          std::printf("  harmonic of bin %zu at %.1f, %.1f: off by %.4g cd, length %.4g cd\n", k, aDeg, bDeg,
+                      glm::length(h - wantH[k]), glm::length(wantH[k]));
+        worstH = std::max(worstH, glm::length(h - wantH[k]));
+        scaleH = std::max(scaleH, glm::length(wantH[k]));
         scale = std::max(scale, want[k]);
       }
     }
   }
-  std::printf("low beam, between nodes: largest difference %.4g cd of a largest mean %.4g cd\n", worst, scale);
+  std::printf("low beam, between nodes: largest difference %.4g cd of a largest mean %.4g cd; harmonics %.4g cd of "
+              "a largest %.4g cd\n", worst, scale, worstH, scaleH);
   EXPECT_LT(worst, 0.06 * scale);
+  EXPECT_LT(worstH, 0.06 * scaleH);
+}
+
+// Order 1 of a low beam on the road ahead of it, the model (annulus means and their first
+// harmonics, order-one table) against the hemispherical integral of the accurate method's single
+// scattering per ray (no model: the lamp's file direction by direction). Without the harmonic the
+// model spreads the beam's light evenly about the lamp–point axis; 40 m ahead, where the road
+// sees the lamp at grazing incidence and the beam lies below that axis, that is ~1.9×.
+TEST(FogLight, TheHarmonicCarriesTheSideOfTheAxisTheLightLeavesOn) {
+  ThreadPool pool(2);
+  const auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
+  const auto ms = shippedMultipleScatteringTable(makeHenyeyGreenstein(0.85).value());
+  ASSERT_NE(ms, nullptr);
+  const auto map = AnnulusMeanMap::build(*beam, ms->emissionEdges(), false, &pool);
+  for (double visibility : {50.0, 150.0}) {
+    const Medium fog = hgFog(extinctionFromVisibility(visibility));
+    const auto table = FogLightTable::buildOrderOne(ms->emissionEdges(), fog.phase, 1.0, &pool).value();
+    Lamp lamp;
+    lamp.position_m = Vec3(0.0, 0.0, 0.65);
+    lamp.worldFromLamp = worldFromAxis(Vec3(1.0, 0.0, 0.0));  // the axis along the road, level
+    lamp.profile = beam;
+    const auto ev = AirlightEvaluator::build(lamp, fog, AirlightMethod::Accurate, AirlightOptions{}).value();
+    for (double x : {10.0, 20.0, 40.0}) {
+      const Vec3 p(x, 0.0, 0.0), d = lamp.position_m - p;
+      const double R = glm::length(d), kt = fog.extinction_per_m;
+      // ∫ L cos dω over the sky hemisphere: u = sin² from +z (cos dω = ½ du dφ), Gauss–Legendre in
+      // u (nodes crowding to the horizon, where the lamp is) × 256 azimuths.
+      using GL = boost::math::quadrature::gauss<double, 64>;
+      std::vector<double> rows(64, 0.0);
+      pool.parallelFor(64, [&](std::size_t i) {
+        const double xi = (i % 2 == 0 ? 1.0 : -1.0) * GL::abscissa()[i / 2];
+        const double u = 0.5 * (1.0 + xi), sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
+        double sum = 0.0;
+        for (int j = 0; j < 256; ++j) {
+          const double phi = 2.0 * kPi * (j + 0.5) / 256.0;
+          sum += ev.evaluate(Ray{p + Vec3(0, 0, 1e-3), Vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT),
+                                 std::numeric_limits<double>::infinity()});
+        }
+        rows[i] = GL::weights()[i / 2] * sum * (2.0 * kPi / 256.0);
+      });
+      double exact = 0.0;
+      for (double r : rows) exact += 0.25 * r;
+      const std::size_t bins = table->bins();
+      std::vector<double> means(bins), dip(3 * bins), dotN(bins);
+      const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);
+      map->lookup(lampFromWorld * (-d / R), means.data(), dip.data());
+      const Vec3 n = lampFromWorld * Vec3(0.0, 0.0, 1.0);  // the road's normal in the lamp frame
+      for (std::size_t k = 0; k < bins; ++k) dotN[k] = glm::dot(Vec3(dip[3 * k], dip[3 * k + 1], dip[3 * k + 2]), n);
+      const double withHarmonic = kt * kt * table->irradiance(kt * R, d.z / R, means.data(), dotN.data());
+      const double ringOnly = kt * kt * table->irradiance(kt * R, d.z / R, means.data());
+      std::printf("V %.0f m, %2.0f m ahead: order 1 %.4g lux; model %.3f of it (ring means alone %.3f)\n", visibility, x,
+                  exact, withHarmonic / exact, ringOnly / exact);
+      EXPECT_NEAR(withHarmonic / exact, 1.0, 0.25) << visibility << " " << x;
+      if (x == 40.0) {
+        EXPECT_NEAR(withHarmonic / exact, 1.0, 0.1) << visibility;
+        EXPECT_GT(ringOnly / exact, 1.5) << visibility;  // what the harmonic mends
+      }
+    }
+  }
 }
 
 // The per-lamp coefficients of a frame are each lamp's irradiance from the table.
@@ -172,24 +251,34 @@ TEST(FogLight, TheCoefficientsAreEachLampsIrradiance) {
   far.i0 = 1e6;
   frame.lamps = {street, low, far};
   const Vec3 x(15.0, -1.0, -1.2);
-  std::vector<float> s(4 * frame.lamps.size());
+  ASSERT_EQ(frame.floats(), 4u + kFogLightFloats + 4u);  // the low beam's block holds its dipoles
+  std::vector<float> s(frame.floats());
   const double nearest = fogLightCoefficients(frame, x, s.data());
   EXPECT_NEAR(nearest, glm::length(street.pos - x), 1e-12);
-  for (int q = 0; q < 4; ++q) EXPECT_EQ(s[8 + static_cast<std::size_t>(q)], 0.0f);
+  const std::size_t first[3] = {0, 4, 4 + kFogLightFloats};
+  for (int q = 0; q < 4; ++q) EXPECT_EQ(s[first[2] + static_cast<std::size_t>(q)], 0.0f);
+  double dipoleShare = 0.0;
   for (const Vec3& n0 : {Vec3(0, 0, 1), Vec3(-0.6, 0, 0.8), Vec3(0, 1, 0), Vec3(0.3, -0.2, -0.9)}) {
     const Vec3 n = glm::normalize(n0);
     for (std::size_t l = 0; l < 2; ++l) {
       const auto& L = frame.lamps[l];
       const Vec3 toLamp = glm::normalize(L.pos - x);
-      std::vector<double> means(table->bins(), L.i0);
-      if (L.map != nullptr) L.map->lookup(L.lampFromWorld * -toLamp, means.data());
-      const double kt = fog.extinction_per_m;
-      const double want = kt * kt * table->irradiance(kt * glm::length(L.pos - x), glm::dot(n, toLamp), means.data());
-      const float got = fogLightIrradiance(&s[4 * l], static_cast<float>(glm::dot(n, toLamp)));
+      const std::size_t bins = table->bins();
+      std::vector<double> means(bins, L.i0), dip(3 * bins, 0.0), dotN(bins, 0.0);
+      if (L.map != nullptr) L.map->lookup(L.lampFromWorld * -toLamp, means.data(), dip.data());
+      const Vec3 nLamp = L.lampFromWorld * n;
+      for (std::size_t k = 0; k < bins; ++k) dotN[k] = glm::dot(Vec3(dip[3 * k], dip[3 * k + 1], dip[3 * k + 2]), nLamp);
+      const double kt = fog.extinction_per_m, T = kt * glm::length(L.pos - x), mu = glm::dot(n, toLamp);
+      const double want = kt * kt * table->irradiance(T, mu, means.data(), dotN.data());
+      const float got = fogLightIrradiance(&s[first[l]], L.map != nullptr, static_cast<float>(mu), static_cast<float>(n.x),
+                                           static_cast<float>(n.y), static_cast<float>(n.z));
       EXPECT_NEAR(got, want, 1e-5 * want + 1e-9) << l;
       EXPECT_GT(want, 0.0);
+      if (L.map != nullptr)
+        dipoleShare = std::max(dipoleShare, std::abs(want - kt * kt * table->irradiance(T, mu, means.data())) / want);
     }
   }
+  EXPECT_GT(dipoleShare, 0.01);  // the case exercises the dipole
 }
 
 // The surface layer's fog light on the bench scene (planes and the bonnet, the driver's low beams,

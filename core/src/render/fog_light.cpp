@@ -35,8 +35,9 @@ double denseIndex(double T) {  // fractional node of T (≥ 0)
 
 // Angles of the glow curve the moments integrate over (glowNodeAngle).
 constexpr std::size_t kThetaNodes = 257;
-// The annulus maps' grid: the angle α from the lamp's axis every 1° up to 24° (a headlamp's
-// beam and cut-off lie within a few degrees of its axis, and the first bins are 3° and 5° wide),
+// The annulus maps' grid: the angle α from the lamp's axis every 0.5° up to 24° (a headlamp's
+// beam and cut-off lie within a few degrees of its axis, and the first bins are 3° and 5° wide:
+// at 1° the first bin's harmonic was 11 % off between rows next to the axis, 0.5° quarters that),
 // then every 3°; the azimuth every 3°.
 constexpr double kMapFine = AnnulusMeanMap::kFineDeg * kDeg, kMapStep = AnnulusMeanMap::kStepDeg * kDeg;
 constexpr int kMapFineRows = AnnulusMeanMap::kFineRows;  // rows below kMapFineEnd
@@ -58,10 +59,11 @@ double muNode(std::size_t j) { return -1.0 + 2.0 * static_cast<double>(j) / stat
 // 1 / (E + 0.02 E(1))²: nearly relative. The μ⁺ term is the light that arrives from close to the
 // lamp's direction (its clamped cosine has a kink at grazing incidence no polynomial follows);
 // the rest is smooth. Gaussian elimination with partial pivoting on the 4 × 4 normal equations.
-// out = {κ, c0, c1, c2}; all zero when E is.
-void fitIrradiance(const std::vector<double>& E, double* out) {
+// out = {κ, c0, c1, c2}; all zero when E is. `scale`: the E(1) of the floor (the dipole's G, whose
+// largest value is not at μ = 1, passes its own largest).
+void fitIrradiance(const std::vector<double>& E, double* out, double scale) {
   for (int q = 0; q < 4; ++q) out[q] = 0.0;
-  const double floor = 0.02 * E.back();
+  const double floor = 0.02 * scale;
   if (!(floor > 0.0)) return;
   double A[4][5] = {};
   for (std::size_t j = 0; j < E.size(); ++j) {
@@ -147,29 +149,47 @@ double fogLightOrder1(const Phase& phase, double opticalDistance, double theta, 
 
 Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const MultipleScatteringTable& ms, const Phase& phase,
                                                                   double albedo, ThreadPool* pool) {
+  return build(&ms, ms.hasEmissionBins() ? ms.emissionEdges() : std::vector<double>{0.0, kPi}, phase, albedo, pool);
+}
+
+Result<std::shared_ptr<const FogLightTable>> FogLightTable::buildOrderOne(const std::vector<double>& edges,
+                                                                          const Phase& phase, double albedo,
+                                                                          ThreadPool* pool) {
+  if (edges.size() < 2 || edges.front() != 0.0 || std::abs(edges.back() - kPi) > 1e-12 ||
+      !std::is_sorted(edges.begin(), edges.end()))
+    return Error{"fog light: emission bin edges must rise from 0 to pi"};
+  return build(nullptr, edges, phase, albedo, pool);
+}
+
+Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const MultipleScatteringTable* ms,
+                                                                  const std::vector<double>& edges, const Phase& phase,
+                                                                  double albedo, ThreadPool* pool) {
   if (!(albedo > 0.0 && albedo <= 1.0)) return Error{"fog light: albedo must lie in (0, 1]"};
   const auto start = std::chrono::steady_clock::now();
   std::shared_ptr<FogLightTable> t(new FogLightTable());
   t->albedo_ = albedo;
-  t->edges_ = ms.hasEmissionBins() ? ms.emissionEdges() : std::vector<double>{0.0, kPi};
+  t->edges_ = edges;
   const std::size_t bins = t->bins();
   t->t_.resize(kTNodes);
   for (int i = 0; i < kTNodes; ++i)
     t->t_[static_cast<std::size_t>(i)] = std::exp2(kLogFirst + static_cast<double>(i) / kPerOctave);
   t->logEnv_.assign(kTNodes * bins, 0.0);
-  t->norm_.assign(kTNodes * bins * 4, 0.0);
+  t->norm_.assign(kTNodes * bins * kCoefficients, 0.0);
   std::vector<double> theta(kThetaNodes);
   for (std::size_t i = 0; i < kThetaNodes; ++i) theta[i] = glow_quadrature::glowNodeAngle(i, kThetaNodes);
 
   auto node = [&](std::size_t iT) {
     const double T = t->t_[iT];
-    // L_k(θ_i) (K_t = 1 /m, 1 cd): Ω l¹_k + f share_k.
-    std::vector<double> L(kThetaNodes * bins, 0.0), shares(bins, 1.0), o1(bins);
+    // L_k(θ_i) (K_t = 1 /m, 1 cd): Ω l¹_k + f share_k; L1 the order-1 part alone (the dipole's).
+    std::vector<double> L(kThetaNodes * bins, 0.0), L1(kThetaNodes * bins, 0.0), shares(bins, 1.0), o1(bins);
     for (std::size_t i = 1; i < kThetaNodes; ++i) {
       order1Bins(phase, T, theta[i], t->edges_, o1.data());
-      const double f = ms.value(T, theta[i], albedo);
-      if (ms.hasEmissionBins()) ms.emissionShares(T, theta[i], shares.data());
-      for (std::size_t k = 0; k < bins; ++k) L[i * bins + k] = albedo * o1[k] + f * shares[k];
+      const double f = ms != nullptr ? ms->value(T, theta[i], albedo) : 0.0;
+      if (ms != nullptr && ms->hasEmissionBins()) ms->emissionShares(T, theta[i], shares.data());
+      for (std::size_t k = 0; k < bins; ++k) {
+        L1[i * bins + k] = albedo * o1[k];
+        L[i * bins + k] = L1[i * bins + k] + f * shares[k];
+      }
     }
     // E_k(μ) exactly at kMuNodes normals (the azimuthal integral of max(0, ω·n) in closed
     // form, as scatteredIrradiance), then c_k0 + c_k1 μ + c_k2 P₂(μ) by least squares weighted
@@ -191,13 +211,35 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
           return L[i * bins + k] * w * std::sin(theta[i]);
         });
       }
-      double c[4];
-      fitIrradiance(E, c);
-      // Stored as log E_k(1) (the envelope: positive, falls as e^{−T}) and the four coefficients
-      // over it (bounded), so that T interpolates smoothly.
+      double c[kCoefficients];
+      fitIrradiance(E, c, E.back());
+      // The dipole (header comment): G_k(μ) = ∫ l¹_k(θ) W₁(θ, μ) sin θ dθ / √(1 − μ²), W₁ the
+      // azimuthal integral of cos φ max(0, μ cos θ + √(1 − μ²) sin θ cos φ) (n = μ a + √(1 − μ²) x̂,
+      // φ from x̂): A sin φ0 + B φ0 with A = μ cos θ, B = √(1 − μ²) sin θ, cos φ0 = −A/B where the
+      // element sees part of the ring; π B where it sees all of it (A ≥ B), 0 where none.
+      std::vector<double> G(kMuNodes);
+      double gMax = 0.0;
+      for (std::size_t j = 0; j < kMuNodes; ++j) {
+        const double ci = muNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
+        G[j] = glow_quadrature::integrateFromApex(theta, [&](std::size_t i) {
+          const double st = std::sin(theta[i]), a = std::cos(theta[i]) * ci;
+          double w1;  // W₁ / √(1 − μ²)
+          if (si * st <= std::abs(a)) w1 = a > 0.0 ? kPi * st : 0.0;
+          else {
+            const double phi0 = std::acos(std::clamp(-a / (si * st), -1.0, 1.0));
+            w1 = a * std::sin(phi0) / si + st * phi0;
+          }
+          return L1[i * bins + k] * w1 * st;
+        });
+        gMax = std::max(gMax, G[j]);
+      }
+      fitIrradiance(G, c + kSymmetric, gMax);
+      // Stored as log E_k(1) (the envelope: positive, falls as e^{−T}) and the coefficients over
+      // it (bounded), so that T interpolates smoothly.
       const double env = E.back();
       t->logEnv_[iT * bins + k] = std::log(std::max(env, 1e-300));
-      for (int q = 0; q < 4; ++q) t->norm_[(iT * bins + k) * 4 + static_cast<std::size_t>(q)] = env > 0.0 ? c[q] / env : 0.0;
+      for (std::size_t q = 0; q < kCoefficients; ++q)
+        t->norm_[(iT * bins + k) * kCoefficients + q] = env > 0.0 ? c[q] / env : 0.0;
     }
   };
   if (pool != nullptr && pool->size() > 1) pool->parallelFor(kTNodes, node);
@@ -212,11 +254,11 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
     t->smoothCoefficients(denseT(i), row.data());
     for (std::size_t q = 0; q < row.size(); ++q) t->dense_[i * row.size() + q] = static_cast<float>(row[q]);
   }
-  t->denseSum_.assign(kDenseNodes * kCoefficients, 0.0f);
+  t->denseSum_.assign(kDenseNodes * kSymmetric, 0.0f);
   for (std::size_t i = 0; i < kDenseNodes; ++i)
     for (std::size_t k = 0; k < bins; ++k)
-      for (std::size_t q = 0; q < kCoefficients; ++q)
-        t->denseSum_[i * kCoefficients + q] += t->dense_[(i * bins + k) * kCoefficients + q];
+      for (std::size_t q = 0; q < kSymmetric; ++q)
+        t->denseSum_[i * kSymmetric + q] += t->dense_[(i * bins + k) * kCoefficients + q];
   t->buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return std::shared_ptr<const FogLightTable>(std::move(t));
 }
@@ -257,60 +299,76 @@ void FogLightTable::smoothCoefficients(double opticalDistance, double* c) const 
     const std::size_t a = i0 * bins + k, b = (i0 + 1) * bins + k;
     const double env = below * std::exp((1.0 - w) * logEnv_[a] + w * logEnv_[b]);
     for (std::size_t q = 0; q < kCoefficients; ++q)
-      c[k * kCoefficients + q] = env * ((1.0 - w) * norm_[4 * a + q] + w * norm_[4 * b + q]);
+      c[k * kCoefficients + q] = env * ((1.0 - w) * norm_[kCoefficients * a + q] + w * norm_[kCoefficients * b + q]);
   }
+}
+
+bool FogLightTable::denseRow(double opticalDistance, std::size_t& row, double& weight, double& below) const noexcept {
+  const double T = opticalDistance;
+  if (!(T > 0.0) || T > t_.back()) return false;
+  const double x = denseIndex(T);
+  row = std::min(static_cast<std::size_t>(x), kDenseNodes - 2);
+  weight = std::min(x - static_cast<double>(row), 1.0);
+  below = T < t_.front() ? t_.front() / T : 1.0;  // ∝ 1/T below the first node
+  return true;
 }
 
 void FogLightTable::coefficients(double opticalDistance, double* c) const noexcept {
   const std::size_t n = bins() * kCoefficients;
-  const double T = opticalDistance;
-  if (!(T > 0.0) || T > t_.back()) {
+  std::size_t i0 = 0;
+  double w = 0.0, below = 1.0;
+  if (!denseRow(opticalDistance, i0, w, below)) {
     for (std::size_t i = 0; i < n; ++i) c[i] = 0.0;
     return;
   }
-  const double x = denseIndex(T);
-  const std::size_t i0 = std::min(static_cast<std::size_t>(x), kDenseNodes - 2);
-  const double w = std::min(x - static_cast<double>(i0), 1.0);
-  const double below = T < t_.front() ? t_.front() / T : 1.0;  // ∝ 1/T below the first node
   const float* a = dense_.data() + i0 * n;
   const float* b = a + n;
   for (std::size_t q = 0; q < n; ++q) c[q] = below * ((1.0 - w) * double(a[q]) + w * double(b[q]));
 }
 
-void FogLightTable::weighted(double opticalDistance, const float* binMeans, float scale, float* out) const noexcept {
+void FogLightTable::weighted(double opticalDistance, const float* binMeans, const float* binDipoles, float scale,
+                             float* out) const noexcept {
   const std::size_t bins = this->bins(), n = bins * kCoefficients;
-  const double T = opticalDistance;
-  for (std::size_t q = 0; q < kCoefficients; ++q) out[q] = 0.0f;
-  if (!(T > 0.0) || T > t_.back()) return;
-  const double x = denseIndex(T);
-  const std::size_t i0 = std::min(static_cast<std::size_t>(x), kDenseNodes - 2);
-  const float w = static_cast<float>(std::min(x - static_cast<double>(i0), 1.0));
-  const float s = T < t_.front() ? scale * static_cast<float>(t_.front() / T) : scale;
+  for (std::size_t q = 0; q < kLampFloats; ++q) out[q] = 0.0f;
+  std::size_t i0 = 0;
+  double wd = 0.0, below = 1.0;
+  if (!denseRow(opticalDistance, i0, wd, below)) return;
+  const auto w = static_cast<float>(wd);
+  const float s = scale * static_cast<float>(below);
   if (binMeans == nullptr) {  // an isotropic lamp: every bin's mean is 1, the rows' sums over bins
-    const float* a = denseSum_.data() + i0 * kCoefficients;
-    for (std::size_t q = 0; q < kCoefficients; ++q) out[q] = s * (a[q] + w * (a[q + kCoefficients] - a[q]));
+    const float* a = denseSum_.data() + i0 * kSymmetric;
+    for (std::size_t q = 0; q < kSymmetric; ++q) out[q] = s * (a[q] + w * (a[q + kSymmetric] - a[q]));
     return;
   }
+  // Rows blended first (one lerp per bin and coefficient), then weighed by the bins' means and
+  // dipoles.
   const float* a = dense_.data() + i0 * n;
   const float* b = a + n;
-  float sa[kCoefficients] = {0.0f, 0.0f, 0.0f, 0.0f}, sb[kCoefficients] = {0.0f, 0.0f, 0.0f, 0.0f};
-  for (std::size_t k = 0; k < bins; ++k)
-    for (std::size_t q = 0; q < kCoefficients; ++q) {
-      sa[q] += binMeans[k] * a[k * kCoefficients + q];
-      sb[q] += binMeans[k] * b[k * kCoefficients + q];
-    }
-  for (std::size_t q = 0; q < kCoefficients; ++q) out[q] = s * (sa[q] + w * (sb[q] - sa[q]));
+  for (std::size_t k = 0; k < bins; ++k) {
+    float c[kCoefficients];
+    for (std::size_t q = 0; q < kCoefficients; ++q) c[q] = a[k * kCoefficients + q] + w * (b[k * kCoefficients + q] - a[k * kCoefficients + q]);
+    for (std::size_t q = 0; q < kSymmetric; ++q) out[q] += binMeans[k] * c[q];
+    if (binDipoles != nullptr)
+      for (std::size_t q = 0; q < kSymmetric; ++q)
+        for (std::size_t e = 0; e < 3; ++e) out[kSymmetric + 3 * q + e] += binDipoles[3 * k + e] * c[kSymmetric + q];
+  }
+  for (std::size_t q = 0; q < kLampFloats; ++q) out[q] *= s;
 }
 
-double FogLightTable::irradiance(double opticalDistance, double mu, const double* binMeans) const noexcept {
+double FogLightTable::irradiance(double opticalDistance, double mu, const double* binMeans,
+                                 const double* dipoleDotN) const noexcept {
   const std::size_t bins = this->bins();
   double c[64 * kCoefficients];
   if (bins > 64) return 0.0;
   coefficients(opticalDistance, c);
-  double s[kCoefficients] = {0.0, 0.0, 0.0, 0.0};
+  double s[kCoefficients] = {};
   for (std::size_t k = 0; k < bins; ++k)
-    for (std::size_t q = 0; q < kCoefficients; ++q) s[q] += binMeans[k] * c[k * kCoefficients + q];
-  return std::max(0.0, s[0] * std::max(mu, 0.0) + s[1] + s[2] * mu + s[3] * 0.5 * (3.0 * mu * mu - 1.0));
+    for (std::size_t q = 0; q < kCoefficients; ++q)
+      s[q] += (q < kSymmetric ? binMeans[k] : (dipoleDotN != nullptr ? dipoleDotN[k] : 0.0)) * c[k * kCoefficients + q];
+  const double b[kSymmetric] = {std::max(mu, 0.0), 1.0, mu, 0.5 * (3.0 * mu * mu - 1.0)};
+  double e = 0.0;
+  for (std::size_t q = 0; q < kSymmetric; ++q) e += b[q] * (s[q] + s[kSymmetric + q]);
+  return std::max(0.0, e);
 }
 
 std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profile, const std::vector<double>& edges,
@@ -320,17 +378,22 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
   m->nA_ = kMapFineRows + static_cast<int>(std::lround((kPi - kMapFineEnd) / kMapStep)) + 1;  // 0 … 180°
   m->nB_ = static_cast<int>(std::lround(2.0 * kPi / kMapStep)) + 1;  // 0 … 360°, the last = the first
   const std::size_t bins = m->bins_, nB = static_cast<std::size_t>(m->nB_);
-  m->v_.assign(static_cast<std::size_t>(m->nA_) * nB * bins, 0.0f);
+  m->v_.assign(static_cast<std::size_t>(m->nA_) * nB * bins * kFloats, 0.0f);
   auto row = [&](std::size_t ia) {
     std::vector<double> out(bins);
+    std::vector<Vec3> first(bins);
     const double a = mapAlpha(ia);
     for (std::size_t ib = 0; ib + 1 < nB; ++ib) {
       const double b = static_cast<double>(ib) * kMapStep;
       const Vec3 w{std::cos(a), std::sin(a) * std::cos(b), std::sin(a) * std::sin(b)};
-      annulusMeans(profile, w, edges.data(), bins, out.data(), frontOnly, 2);
-      for (std::size_t k = 0; k < bins; ++k) m->v_[(ia * nB + ib) * bins + k] = static_cast<float>(out[k]);
+      annulusMeans(profile, w, edges.data(), bins, out.data(), frontOnly, 2, first.data());
+      float* v = &m->v_[(ia * nB + ib) * bins * kFloats];
+      for (std::size_t k = 0; k < bins; ++k) {
+        v[kFloats * k] = static_cast<float>(out[k]);
+        for (int e = 0; e < 3; ++e) v[kFloats * k + 1 + static_cast<std::size_t>(e)] = static_cast<float>(first[k][e]);
+      }
     }
-    for (std::size_t k = 0; k < bins; ++k) m->v_[(ia * nB + nB - 1) * bins + k] = m->v_[(ia * nB) * bins + k];
+    std::copy_n(&m->v_[(ia * nB) * bins * kFloats], bins * kFloats, &m->v_[(ia * nB + nB - 1) * bins * kFloats]);
   };
   if (pool != nullptr && pool->size() > 1) pool->parallelFor(static_cast<std::size_t>(m->nA_), row);
   else
@@ -339,7 +402,7 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
 }
 
 template <class T>
-void AnnulusMeanMap::lookupInto(const Vec3& w, T* out) const noexcept {
+void AnnulusMeanMap::lookupInto(const Vec3& w, T* means, T* dipoles) const noexcept {
   const double a = fastAtan2(std::sqrt(w.y * w.y + w.z * w.z), w.x);
   double b = fastAtan2(w.z, w.y);
   if (b < 0.0) b += 2.0 * kPi;
@@ -348,22 +411,39 @@ void AnnulusMeanMap::lookupInto(const Vec3& w, T* out) const noexcept {
   const std::size_t ia = std::min(static_cast<std::size_t>(x), static_cast<std::size_t>(nA_ - 2));
   const std::size_t ib = std::min(static_cast<std::size_t>(y), static_cast<std::size_t>(nB_ - 2));
   const float u = static_cast<float>(x - static_cast<double>(ia)), v = static_cast<float>(y - static_cast<double>(ib));
-  const std::size_t nB = static_cast<std::size_t>(nB_);
-  const float* p00 = &v_[(ia * nB + ib) * bins_];
-  const float* p01 = p00 + bins_;
-  const float* p10 = p00 + nB * bins_;
-  const float* p11 = p10 + bins_;
+  const std::size_t nB = static_cast<std::size_t>(nB_), node = bins_ * kFloats;
+  const float* p00 = &v_[(ia * nB + ib) * node];
+  const float* p01 = p00 + node;
+  const float* p10 = p00 + nB * node;
+  const float* p11 = p10 + node;
   const float w00 = (1 - u) * (1 - v), w01 = (1 - u) * v, w10 = u * (1 - v), w11 = u * v;
-  for (std::size_t k = 0; k < bins_; ++k) out[k] = static_cast<T>(w00 * p00[k] + w01 * p01[k] + w10 * p10[k] + w11 * p11[k]);
+  auto at = [&](std::size_t i) { return w00 * p00[i] + w01 * p01[i] + w10 * p10[i] + w11 * p11[i]; };
+  for (std::size_t k = 0; k < bins_; ++k) means[k] = static_cast<T>(at(kFloats * k));
+  if (dipoles == nullptr) return;
+  // The nodes' harmonics are perpendicular to their own directions: the blend's part along w
+  // is the nodes' spread, not light on either side, and goes.
+  for (std::size_t k = 0; k < bins_; ++k) {
+    const Vec3 h{at(kFloats * k + 1), at(kFloats * k + 2), at(kFloats * k + 3)};
+    const Vec3 hp = h - glm::dot(h, w) * w;
+    for (int e = 0; e < 3; ++e) dipoles[3 * k + static_cast<std::size_t>(e)] = static_cast<T>(hp[e]);
+  }
 }
 
-void AnnulusMeanMap::lookup(const Vec3& w, float* out) const noexcept { lookupInto(w, out); }
-void AnnulusMeanMap::lookup(const Vec3& w, double* out) const noexcept { lookupInto(w, out); }
+void AnnulusMeanMap::lookup(const Vec3& w, float* means, float* dipoles) const noexcept { lookupInto(w, means, dipoles); }
+void AnnulusMeanMap::lookup(const Vec3& w, double* means, double* dipoles) const noexcept {
+  lookupInto(w, means, dipoles);
+}
+
+std::size_t FogLightFrame::floats() const noexcept {
+  std::size_t n = 0;
+  for (const Lamp& l : lamps) n += fogLightFloats(l);
+  return n;
+}
 
 double fogLightLamp(const FogLightFrame& frame, std::size_t lamp, const Vec3& x, float* out) noexcept {
-  out[0] = out[1] = out[2] = out[3] = 0.0f;
-  const FogLightTable* table = frame.table;
   const FogLightFrame::Lamp& L = frame.lamps[lamp];
+  std::fill(out, out + fogLightFloats(L), 0.0f);
+  const FogLightTable* table = frame.table;
   const Vec3 d = L.pos - x;
   const double r = glm::length(d);
   if (table == nullptr || table->bins() > 64) return r;
@@ -371,11 +451,20 @@ double fogLightLamp(const FogLightFrame& frame, std::size_t lamp, const Vec3& x,
   if (!(r > 0.0) || kt * r > table->opticalDistances().back()) return r;
   const float kt2 = static_cast<float>(kt * kt);
   if (L.map != nullptr) {
-    float means[64];
-    L.map->lookup(L.lampFromWorld * (-d / r), means);  // from the lamp to x
-    table->weighted(kt * r, means, kt2, out);
+    float means[64], dipoles[3 * 64];
+    L.map->lookup(L.lampFromWorld * (-d / r), means, dipoles);  // from the lamp to x
+    table->weighted(kt * r, means, dipoles, kt2, out);
+    // The dipoles' sums are lamp-frame vectors: into the world (the camera-relative frame).
+    const Mat3 worldFromLamp = glm::transpose(L.lampFromWorld);
+    for (std::size_t q = 0; q < FogLightTable::kSymmetric; ++q) {
+      float* v = out + FogLightTable::kSymmetric + 3 * q;
+      const Vec3 wv = worldFromLamp * Vec3(v[0], v[1], v[2]);
+      for (int e = 0; e < 3; ++e) v[e] = static_cast<float>(wv[e]);
+    }
   } else {
-    table->weighted(kt * r, nullptr, kt2 * static_cast<float>(L.i0), out);
+    float all[kFogLightFloats];
+    table->weighted(kt * r, nullptr, nullptr, kt2 * static_cast<float>(L.i0), all);
+    std::copy_n(all, FogLightTable::kSymmetric, out);
   }
   return r;
 }
@@ -384,7 +473,8 @@ double fogLightCoefficients(const FogLightFrame& frame, const Vec3& x, float* ou
   double near = std::numeric_limits<double>::infinity();
   const double limit = frame.table != nullptr ? frame.table->opticalDistances().back() : 0.0;
   for (std::size_t l = 0; l < frame.lamps.size(); ++l) {
-    const double r = fogLightLamp(frame, l, x, out + 4 * l);
+    const double r = fogLightLamp(frame, l, x, out);
+    out += fogLightFloats(frame.lamps[l]);
     if (r > 0.0 && frame.extinction * r <= limit) near = std::min(near, r);
   }
   return near;

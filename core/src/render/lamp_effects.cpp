@@ -210,7 +210,7 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
 }
 
 void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges, std::size_t bins, double* out,
-                  bool frontOnly, int narrowBands) {
+                  bool frontOnly, int narrowBands, Vec3* harmonic) {
   const Vec3 helper = std::abs(axis.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
   const Vec3 u = glm::normalize(glm::cross(axis, helper)), v = glm::cross(axis, u);
   // Equal solid angles within each annulus: 4 bands uniform in cos η (`narrowBands` for annuli
@@ -221,16 +221,24 @@ void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges,
     const double c0 = std::cos(edges[k]), c1 = std::cos(edges[k + 1]);
     const int bands = edges[k + 1] - edges[k] < kNarrow ? narrowBands : 4;
     double sum = 0.0;
+    Vec3 first{0.0};  // Σ I ê(φ), ê the unit direction of the azimuth φ about the axis
     for (int b = 0; b < bands; ++b) {
       const double c = c0 + (static_cast<double>(b) + 0.5) / bands * (c1 - c0);
       const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
       for (int a = 0; a < kAzimuths; ++a) {
         const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
-        const Vec3 w = c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v);
-        if (!frontOnly || w.x >= 0.0) sum += profile.intensity(w);
+        const Vec3 e = std::cos(phi) * u + std::sin(phi) * v;
+        const Vec3 w = c * axis + sn * e;
+        if (!frontOnly || w.x >= 0.0) {
+          const double i = profile.intensity(w);
+          sum += i;
+          first += i * e;
+        }
       }
     }
     out[k] = sum / (bands * kAzimuths);
+    // I ≈ Ī + Ī₁ · ê on the annulus: Ī₁ = 2 ⟨I ê⟩ (⟨cos² φ⟩ = ½).
+    if (harmonic != nullptr) harmonic[k] = first * (2.0 / (bands * kAzimuths));
   }
 }
 

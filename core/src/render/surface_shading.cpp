@@ -269,7 +269,7 @@ class FogTile {
   // `floor`: the fog light's error the eye cannot see, lux as seen through the fog (shade()).
   FogTile(const kernels::ShadeFrame& frame, const SurfaceGBufferView& g, std::size_t stride, float floor,
           FogTileScratch& scratch)
-      : f_(frame), g_(g), w_(g.width), h_(g.height), nq_(4 * frame.fog_light.lamps.size()), stride_(stride),
+      : f_(frame), g_(g), w_(g.width), h_(g.height), nq_(frame.fog_light.floats()), stride_(stride),
         mfp_(1.0f / static_cast<float>(frame.fog_light.extinction)), floor_(floor), sc_(scratch) {}
 
   // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom): their planes (for shadeRow) and fog light.
@@ -299,23 +299,18 @@ class FogTile {
     }
     // One grid for all lamps (a node's cost is mostly its look-ups; grids per lamp repeat the
     // silhouettes' refinement for each lamp and cost more on the bench scene).
-    const std::size_t L = f_.fog_light.lamps.size();
-    for (std::size_t g0 = 0; g0 < L; g0 = g1_) {
-      g0_ = g0;
-      g1_ = L;
-      if (++sc_.current == 0) {  // the stamps wrapped: start them again
-        std::fill(sc_.stamp.begin(), sc_.stamp.end(), 0u);
-        sc_.current = 1;
-      }
-      sc_.s.clear();
-      sc_.nd.clear();
-      if (f_.fog_light_exact) {
-        for (int y = j0; y < std::min(j0 + kFogTile, h_); ++y)
-          for (int x = 0; x < w_; ++x) put(x, y, node(x, y));
-        continue;
-      }
-      for (int xa = 0; xa < w_; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0, yEnd_);
+    if (++sc_.current == 0) {  // the stamps wrapped: start them again
+      std::fill(sc_.stamp.begin(), sc_.stamp.end(), 0u);
+      sc_.current = 1;
     }
+    sc_.s.clear();
+    sc_.nd.clear();
+    if (f_.fog_light_exact) {
+      for (int y = j0; y < std::min(j0 + kFogTile, h_); ++y)
+        for (int x = 0; x < w_; ++x) put(x, y, node(x, y));
+      return;
+    }
+    for (int xa = 0; xa < w_; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0, yEnd_);
   }
 
  private:
@@ -326,9 +321,8 @@ class FogTile {
   float mfp_, floor_;
   FogTileScratch& sc_;
   int j0_ = 0, yEnd_ = 0;
-  std::size_t g0_ = 0, g1_ = 0;  // the lamps of the current grid
   float* rows_ = nullptr;
-  [[nodiscard]] std::size_t nc() const { return 4 * (g1_ - g0_); }
+  [[nodiscard]] std::size_t nc() const { return nq_; }  // floats per node: every lamp's block
 
   [[nodiscard]] std::size_t pixel(int x, int y) const {
     return static_cast<std::size_t>(y - j0_) * static_cast<std::size_t>(w_) + static_cast<std::size_t>(x);
@@ -345,8 +339,7 @@ class FogTile {
     const float d = dist(x, y);
     float* c = sc_.s.data() + nc() * n;
     if (std::isfinite(d)) {
-      const Vec3 p3 = pixelPoint(f_, x, y, d);
-      for (std::size_t l = g0_; l < g1_; ++l) fogLightLamp(f_.fog_light, l, p3, c + 4 * (l - g0_));
+      fogLightCoefficients(f_.fog_light, pixelPoint(f_, x, y, d), c);
     } else {
       std::fill(c, c + nc(), 0.0f);
     }
@@ -356,7 +349,7 @@ class FogTile {
   [[nodiscard]] const float* coef(std::size_t n) const { return sc_.s.data() + nc() * n; }
   [[nodiscard]] float nodeDistance(std::size_t n) const { return sc_.nd[n]; }
   float* out(int x, int y, std::size_t q) {
-    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + 4 * g0_ + q) * stride_ + static_cast<std::size_t>(x);
+    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + q) * stride_ + static_cast<std::size_t>(x);
   }
   void put(int x, int y, std::size_t n) {
     const float* c = coef(n);
@@ -440,9 +433,11 @@ class FogTile {
     float wt[4];
     weights(k, xa, xb, ya, yb, x, y, wt);
     float miss1 = 0.0f, total1 = 0.0f, miss0 = 0.0f, total0 = 0.0f;
-    for (std::size_t l = 0; l < nc(); l += 4) {
-      float pred[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-      for (std::size_t q = 0; q < 4; ++q)
+    std::size_t l = 0;
+    for (const FogLightFrame::Lamp& lamp : f_.fog_light.lamps) {
+      const std::size_t n = fogLightFloats(lamp);
+      float pred[kFogLightFloats] = {};
+      for (std::size_t q = 0; q < n; ++q)
         for (int i = 0; i < 4; ++i) pred[q] += wt[i] * coef(k[i])[l + q];
       const float* v = coef(c) + l;
       const float e1 = v[0] + v[1] + v[2] + v[3], p1 = pred[0] + pred[1] + pred[2] + pred[3];
@@ -451,6 +446,19 @@ class FogTile {
       total1 += std::abs(e1);
       miss0 += std::abs(p0 - e0);
       total0 += std::abs(e0);
+      if (n > FogLightTable::kSymmetric) {
+        // The dipole edge-on (μ = 0, where it counts most; facing the lamp D · n = 0): the vector
+        // D1 − D3/2, its miss and its length.
+        float dm = 0.0f, dv = 0.0f;
+        for (std::size_t e = 0; e < 3; ++e) {
+          const float want = v[7 + e] - 0.5f * v[13 + e], got = pred[7 + e] - 0.5f * pred[13 + e];
+          dm += (got - want) * (got - want);
+          dv += want * want;
+        }
+        miss0 += std::sqrt(dm);
+        total0 += std::sqrt(dv);
+      }
+      l += n;
     }
     // What the eye sees of a miss at distance d is e^{−K_t d} of it: the floor, seen there.
     const float floor = floor_ * std::exp(std::min(nodeDistance(c) / mfp_, 80.0f));
@@ -506,7 +514,7 @@ float fogLightFloor(const kernels::ShadeFrame& frame, const SurfaceGBufferView& 
   const auto W = static_cast<std::size_t>(g.width);
   planeT.resize(W);
   planeIndex.resize(W);
-  coef.resize(4 * frame.fog_light.lamps.size());
+  coef.resize(frame.fog_light.floats());
   const float kt = static_cast<float>(frame.fog_light.extinction);
   float largest = 0.0f;
   for (int y = kSparse / 2; y < g.height; y += kSparse) {
@@ -518,8 +526,12 @@ float fogLightFloor(const kernels::ShadeFrame& frame, const SurfaceGBufferView& 
       const float d = std::min(gd, planeT[xi]);
       if (!std::isfinite(d)) continue;
       fogLightCoefficients(frame.fog_light, pixelPoint(frame, x, y, d), coef.data());
-      float e = 0.0f;
-      for (std::size_t q = 0; q < coef.size(); ++q) e += coef[q];
+      float e = 0.0f;  // Σ over lamps of s0 + s1 + s2 + s3 (facing the lamp, where D · n = 0)
+      std::size_t l = 0;
+      for (const FogLightFrame::Lamp& lamp : frame.fog_light.lamps) {
+        for (std::size_t q = 0; q < FogLightTable::kSymmetric; ++q) e += coef[l + q];
+        l += fogLightFloats(lamp);
+      }
       largest = std::max(largest, e * std::exp(-kt * d));
     }
   }
@@ -541,7 +553,7 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
   // hand out cheaply, enough of them (45–90 at 720 rows) to balance two to sixteen threads.
   const std::size_t kBand = fog ? static_cast<std::size_t>(kFogTile) : 8;
   const std::size_t bands = (h + kBand - 1) / kBand;
-  const std::size_t nq = 4 * frame.fog_light.lamps.size(), stride = w + 64;
+  const std::size_t nq = frame.fog_light.floats(), stride = w + 64;
   const float floor = fog && !frame.fog_light_exact ? fogLightFloor(frame, g) : 0.0f;
   auto band = [&](std::size_t b) {
     // The planes' distances and indices of the band's rows, and its fog light (sized once per thread).

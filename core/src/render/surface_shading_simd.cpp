@@ -194,7 +194,8 @@ void CastPlanesRowImpl(const ShadeFrame& fr, int j, int count, float* HWY_RESTRI
 // One vector of pixels starting at image column i of row j: the geometry buffer's interleaved
 // inputs (normal and ρ red, 4 floats a pixel; ρ green and blue, 2; distance, 1; null: no mesh)
 // and the planes' t and index; interleaved output (3 floats) and the distance. `fog` (null: none):
-// the fog light's coefficients of lamp l at fog[(4 l + q) · stride], q < 4 (shadeRow).
+// the fog light's blocks, lamp after lamp, one row (of `stride` floats) per float: s0 … s3, and
+// for a measured lamp D0 … D3 (fogLightFloats; shadeRow).
 HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY_RESTRICT nrho,
                             const float* HWY_RESTRICT rgb2, const float* HWY_RESTRICT dp,
                             const float* HWY_RESTRICT planeT, const std::int32_t* HWY_RESTRICT planeIndex,
@@ -251,6 +252,7 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
   const VF ds = hn::IfThenElse(hit, dist, one);  // sky lanes: any finite point, masked below
   const VF px = hn::Mul(hn::Mul(ox, inv), ds), py = hn::Mul(hn::Mul(oy, inv), ds), pz = hn::Mul(hn::Mul(oz, inv), ds);
   VF sr = zero, sg = zero, sb = zero;
+  std::size_t fogRow = 0;  // the first row of lamp l's block
   if (!hn::AllFalse(d, hit)) {
     for (std::size_t l = 0; l < fr.lamps.size(); ++l) {
       const ShadeLamp& L = fr.lamps[l];
@@ -265,11 +267,21 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
       const MF lit = hn::And(hn::And(hit, away), hn::Gt(cosInc, zero));
       VF e = zero;
       if (fog != nullptr) {
-        // The fog's scattered light (render/fog_light.hpp): s0 μ⁺ + s1 + s2 μ + s3 P₂(μ), μ = cos i,
-        // on every surface pixel whatever side it faces.
-        const float* fl = fog + 4 * l * stride;
-        const VF s0 = hn::LoadU(d, fl), s1 = hn::LoadU(d, fl + stride), s2 = hn::LoadU(d, fl + 2 * stride),
-                 s3 = hn::LoadU(d, fl + 3 * stride);
+        // The fog's scattered light (render/fog_light.hpp): Σ_q b_q(μ) (s_q + D_q · n),
+        // b = (μ⁺, 1, μ, P₂(μ)), μ = cos i, on every surface pixel whatever side it faces.
+        const float* fl = fog + fogRow * stride;
+        const bool dipole = fr.fog_light.lamps[l].map != nullptr;
+        fogRow += fogLightFloats(fr.fog_light.lamps[l]);
+        VF s0 = hn::LoadU(d, fl), s1 = hn::LoadU(d, fl + stride), s2 = hn::LoadU(d, fl + 2 * stride),
+           s3 = hn::LoadU(d, fl + 3 * stride);
+        if (dipole) {
+          VF* sq[4] = {&s0, &s1, &s2, &s3};
+          for (std::size_t q = 0; q < 4; ++q) {
+            const float* dq = fl + (4 + 3 * q) * stride;
+            *sq[q] = hn::MulAdd(hn::LoadU(d, dq), nx,
+                                hn::MulAdd(hn::LoadU(d, dq + stride), ny, hn::MulAdd(hn::LoadU(d, dq + 2 * stride), nz, *sq[q])));
+          }
+        }
         const VF p2 = hn::MulSub(hn::Set(d, 1.5f), hn::Mul(cosInc, cosInc), hn::Set(d, 0.5f));
         const VF ef = hn::MulAdd(s0, hn::Max(cosInc, zero), hn::MulAdd(s2, cosInc, hn::MulAdd(s3, p2, s1)));
         e = hn::IfThenElseZero(hit, hn::Max(ef, zero));

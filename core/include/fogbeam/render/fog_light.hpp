@@ -11,8 +11,7 @@
 // the direction the light left it and the direction to X (the multiple-scattering tables'
 // emission bins k, edges η_k), a measured lamp contributes Σ_k Ī_k(w) K_t² l_k(T, θ), Ī_k(w) the
 // mean of its intensity over the annulus η ∈ [η_k, η_{k+1}] about w = −a (lamp frame): exact for
-// the part of the light symmetric about the lamp–point axis, a stand-in for the rest (as the
-// glow's). Per bin:
+// the part of the light symmetric about the lamp–point axis. Per bin:
 //   order 1:  l¹_k(T, θ) = Ω / (T sin θ) ∫_{η ∈ bin k, η < π − θ} p(cos(θ + η))
 //                                           e^{−T (sin η + sin θ) / sin(θ + η)} dη
 //   (law of sines in the triangle X, lamp, scattering point: the scattering angle is θ + η),
@@ -22,14 +21,27 @@
 // values of μ and fits, per bin and T node,
 //   E_k(μ) ≈ κ_k μ⁺ + c_k0 + c_k1 μ + c_k2 P₂(μ)                         [lux per cd, K_t = 1 /m]
 // (weighted least squares, nearly relative: the μ⁺ term is the light from close to the lamp's
-// direction, whose clamped cosine has a kink at grazing incidence that no polynomial follows), so
-// a lamp's fog light at a point is four numbers s = K_t² Σ_k Ī_k (κ_k, c_k0, c_k1, c_k2) that depend
-// on the point's position only (fogLightLamp); the normal enters per pixel (fogLightIrradiance).
+// direction, whose clamped cosine has a kink at grazing incidence that no polynomial follows).
+//
+// Which side of the lamp–point axis the light leaves on (a low beam lights the road below the
+// axis to a point ahead and the fog above it hardly at all): the annulus's first azimuthal
+// harmonic, I ≈ Ī_k + Ī₁_k · ê (ê the unit vector of the azimuth about the axis; Ī₁_k a vector
+// perpendicular to it). A scatterer seen from X in the direction ω lies on the same side of the
+// axis as ω, so order 1 gives the radiance l¹_k(T, θ) Ī₁_k · ω̂⊥, and the element's irradiance
+// from it is (Ī₁_k · n) G_k(μ) with
+//   G_k(μ) = ∫ l¹_k(θ) W₁(θ, μ) sin θ dθ / √(1 − μ²),  W₁ = ∫ cos φ max(0, ω·n) dφ,
+// fitted in the same four functions of μ. Orders ≥ 2 keep only the ring mean (the light that
+// scattered twice has mostly forgotten the side it left on; the path tracer is the judge:
+// docs/airlight.md). So a lamp's fog light at a point is s = K_t² Σ_k Ī_k (κ_k, c_k0, c_k1, c_k2)
+// and four vectors D_q = K_t² Σ_k Ī₁_k g_kq, all depending on the point's position only
+// (fogLightLamp); the normal enters per pixel (fogLightIrradiance):
+//   E = Σ_q b_q(μ) (s_q + D_q · n),   b = (μ⁺, 1, μ, P₂(μ)).
 // The surface layer evaluates s on an adaptive grid and blends it between nodes (SurfaceShader,
 // fogbeam/render/surface_shading.hpp).
 //
 // Assumes infinite homogeneous fog around each point (a road absorbs part of the diffuse light
-// and there is no fog below it: measured 0.86–1.33 of the path tracer on a road of ρ = 0.1),
+// and there is no fog below it: `fogbeam validate --path-tracer` prints the model against the path
+// tracer on a road of ρ = 0.1 and without it; docs/airlight.md),
 // no shadows (as the direct light), and light that reaches the surface through the fog only
 // (the direct light is the surface layer's).
 //
@@ -51,11 +63,15 @@ namespace fogbeam {
 class MultipleScatteringTable;
 class ThreadPool;
 
-/// The coefficients (κ_k, c_k0, c_k1, c_k2)(T) of the header comment for one phase function and
-/// albedo, on T = 2^(−7) … 2^5 at 2^(1/4); per cd of each emission bin's mean intensity, K_t = 1 /m.
+/// The coefficients (κ_k, c_k0, c_k1, c_k2)(T) and the dipole's g_k0 … g_k3 of the header comment
+/// for one phase function and albedo, on T = 2^(−7) … 2^5 at 2^(1/4); per cd of each emission
+/// bin's mean intensity (harmonic), K_t = 1 /m.
 class FogLightTable {
  public:
-  static constexpr std::size_t kCoefficients = 4;  ///< κ, c0, c1, c2 per bin
+  static constexpr std::size_t kSymmetric = 4;     ///< κ, c0, c1, c2: the functions of μ
+  static constexpr std::size_t kCoefficients = 8;  ///< per bin: κ, c0, c1, c2, then the dipole's g0 … g3
+  /// weighted()'s output: s0 … s3, then D0 … D3 (3 floats each).
+  static constexpr std::size_t kLampFloats = kSymmetric + 3 * kSymmetric;
   /// Order 1 by Gauss–Legendre quadrature over η (per bin, 8 points per piece, pieces ≤ 3°,
   /// finer near η = 0 for forward-peaked phase functions), orders ≥ 2 from `ms` (its emission
   /// bins; a table without bins counts as one bin 0–180°), E_k(μ) over the glow curve's 257
@@ -64,6 +80,11 @@ class FogLightTable {
   [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> build(const MultipleScatteringTable& ms,
                                                                           const Phase& phase, double albedo,
                                                                           ThreadPool* pool = nullptr);
+  /// Order 1 alone over the emission bins `edges` (radians, 0 … π, rising): for tests and
+  /// `fogbeam validate`, which compare the model's order 1 with quadratures of it.
+  [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> buildOrderOne(const std::vector<double>& edges,
+                                                                                  const Phase& phase, double albedo,
+                                                                                  ThreadPool* pool = nullptr);
   /// The cached table for (phase, albedo, ms): built on first use, the 4 most recent kept.
   [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> get(
       const std::shared_ptr<const MultipleScatteringTable>& ms, const Phase& phase, double albedo,
@@ -73,36 +94,48 @@ class FogLightTable {
   /// Emission bin edges η_k, radians, 0 … π.
   [[nodiscard]] const std::vector<double>& edges() const noexcept { return edges_; }
   [[nodiscard]] double albedo() const noexcept { return albedo_; }
-  /// c[k · kCoefficients + q] (κ, c0, c1, c2 of bin k) at optical distance T (per cd, K_t = 1 /m):
+  /// c[k · kCoefficients + q] (κ, c0, c1, c2, g0 … g3 of bin k) at optical distance T (per cd, K_t = 1 /m):
   /// between the fit's nodes log-linear in T for E_k(μ = 1) and linear for the coefficients over
   /// it, read from a dense resampling of that (linear between its rows); below the first node
   /// c ∝ 1/T (order 1's limit: the light gathered within a few mean free paths); above the last
   /// node (T = 32, where the light has fallen by e^{−32}) 0. `c` holds bins() · kCoefficients values.
   void coefficients(double opticalDistance, double* c) const noexcept;
-  /// Σ_k binMeans[k] c_k(T) × scale into out[0 … 3] (κ, c0, c1, c2) in float, from the dense
-  /// table; binMeans null: an isotropic lamp (every mean 1). The frames' look-up.
-  void weighted(double opticalDistance, const float* binMeans, float scale, float* out) const noexcept;
-  /// E(μ) per cd of a lamp whose bins' mean intensities are `binMeans` (K_t = 1 /m: multiply
-  /// by K_t²), clamped at 0; μ = cos of the angle between the normal and the lamp's direction.
-  [[nodiscard]] double irradiance(double opticalDistance, double mu, const double* binMeans) const noexcept;
+  /// Σ_k binMeans[k] (κ, c0, c1, c2)_k(T) × scale into out[0 … 3] and Σ_k binDipoles[3k … 3k+2]
+  /// g_kq(T) × scale into out[4 + 3q … 6 + 3q] (in the dipoles' frame), in float, from the dense
+  /// table; binMeans null: an isotropic lamp (every mean 1, no dipole); binDipoles null: none.
+  /// out holds kLampFloats. The frames' look-up.
+  void weighted(double opticalDistance, const float* binMeans, const float* binDipoles, float scale,
+                float* out) const noexcept;
+  /// E(μ) per cd of a lamp whose bins' mean intensities are `binMeans` and whose harmonics'
+  /// components along the normal are `dipoleDotN` (null: 0) (K_t = 1 /m: multiply by K_t²),
+  /// clamped at 0; μ = cos of the angle between the normal and the lamp's direction.
+  [[nodiscard]] double irradiance(double opticalDistance, double mu, const double* binMeans,
+                                  const double* dipoleDotN = nullptr) const noexcept;
 
   [[nodiscard]] const std::vector<double>& opticalDistances() const noexcept { return t_; }
   [[nodiscard]] double buildSeconds() const noexcept { return buildSeconds_; }
 
   /// The dense table the frames read, for the shaders (shaders/common_photometry.glsl mirrors
   /// weighted()): rows at T = 2^(−7 + i/16) for i ≤ kDenseLog, then 1 + (i − kDenseLog)/16 up
-  /// to 32; row i holds bins() × 4 floats (κ, c0, c1, c2 per bin), denseSums() row i their 4
-  /// sums over the bins.
+  /// to 32; row i holds bins() × kCoefficients floats (κ, c0, c1, c2, g0 … g3 per bin),
+  /// denseSums() row i the sums of the first 4 over the bins.
   static constexpr std::size_t kDenseLog = 7 * 16, kDenseNodes = kDenseLog + 31 * 16 + 1;
   [[nodiscard]] const std::vector<float>& dense() const noexcept { return dense_; }
   [[nodiscard]] const std::vector<float>& denseSums() const noexcept { return denseSum_; }
 
  private:
   FogLightTable() = default;
+  [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> build(const MultipleScatteringTable* ms,
+                                                                          const std::vector<double>& edges,
+                                                                          const Phase& phase, double albedo,
+                                                                          ThreadPool* pool);
   void smoothCoefficients(double opticalDistance, double* c) const noexcept;  // from the build nodes
+  /// The dense row below T, the weight of the next and the 1/T factor below the first node;
+  /// false beyond the table (T ≤ 0 or T > 32: no light).
+  bool denseRow(double opticalDistance, std::size_t& row, double& weight, double& below) const noexcept;
   std::vector<double> edges_, t_;
-  std::vector<double> logEnv_, norm_;  // [iT][k] log E_k(μ = 1); [iT][k][4] the coefficients over it
-  std::vector<float> dense_;           // [dense T node][k][4] (fog_light.cpp)
+  std::vector<double> logEnv_, norm_;  // [iT][k] log E_k(μ = 1); [iT][k][kCoefficients] the coefficients over it
+  std::vector<float> dense_;           // [dense T node][k][kCoefficients] (fog_light.cpp)
   std::vector<float> denseSum_;        // [dense T node][4]: Σ over bins
   double albedo_ = 1.0;
   double buildSeconds_ = 0.0;
@@ -114,8 +147,9 @@ class FogLightTable {
 [[nodiscard]] double fogLightOrder1(const Phase& phase, double opticalDistance, double theta, double eta0,
                                     double eta1) noexcept;
 
-/// Ī_k(w) of one profile over the lamp-frame directions: a grid of 3° in the angle from the
-/// lamp's +x axis (0 … 180°) and the azimuth about it (atan2(z, y)), bilinear between nodes.
+/// Ī_k(w) and the harmonics Ī₁_k(w) of one profile over the lamp-frame directions: a grid of 0.5° / 3°
+/// in the angle from the lamp's +x axis (0 … 180°) and 3° in the azimuth about it (atan2(z, y)),
+/// bilinear between nodes.
 /// Built once per (profile, bins, frontOnly): ~0.3–0.6 s for a tabulated file on 2 cores.
 class AnnulusMeanMap {
  public:
@@ -123,17 +157,19 @@ class AnnulusMeanMap {
   [[nodiscard]] static std::shared_ptr<const AnnulusMeanMap> build(const Profile& profile,
                                                                    const std::vector<double>& edges, bool frontOnly,
                                                                    ThreadPool* pool = nullptr);
-  /// Ī_k for the lamp-frame unit direction `w`, k < bins, into out.
-  void lookup(const Vec3& w, double* out) const noexcept;
-  void lookup(const Vec3& w, float* out) const noexcept;
+  /// Ī_k for the lamp-frame unit direction `w`, k < bins, into means[k], and (dipoles not null)
+  /// Ī₁_k, lamp frame, into dipoles[3k … 3k + 2] (made perpendicular to w).
+  void lookup(const Vec3& w, double* means, double* dipoles = nullptr) const noexcept;
+  void lookup(const Vec3& w, float* means, float* dipoles = nullptr) const noexcept;
   [[nodiscard]] std::size_t bins() const noexcept { return bins_; }
 
   /// The grid, for the shaders: rows of the angle α from the axis every kFineDeg up to
   /// kFineRows · kFineDeg, then every kStepDeg to 180°; columns of the azimuth atan2(z, y) every
-  /// kStepDeg over 0 … 360° (the last repeats the first); values()[(row · columns() + column) ·
-  /// bins() + k].
-  static constexpr double kFineDeg = 1.0, kStepDeg = 3.0;
-  static constexpr int kFineRows = 24;
+  /// kStepDeg over 0 … 360° (the last repeats the first); values()[((row · columns() + column) ·
+  /// bins() + k) · kFloats + i]: i = 0 the mean, 1 … 3 the harmonic (lamp frame).
+  static constexpr std::size_t kFloats = 4;
+  static constexpr double kFineDeg = 0.5, kStepDeg = 3.0;
+  static constexpr int kFineRows = 48;
   [[nodiscard]] int rows() const noexcept { return nA_; }
   [[nodiscard]] int columns() const noexcept { return nB_; }
   [[nodiscard]] const std::vector<float>& values() const noexcept { return v_; }
@@ -141,10 +177,10 @@ class AnnulusMeanMap {
  private:
   AnnulusMeanMap() = default;
   template <class T>
-  void lookupInto(const Vec3& w, T* out) const noexcept;
+  void lookupInto(const Vec3& w, T* means, T* dipoles) const noexcept;
   std::size_t bins_ = 0;
   int nA_ = 0, nB_ = 0;
-  std::vector<float> v_;  // [iα][iβ][k]
+  std::vector<float> v_;  // [iα][iβ][k][kFloats]
 };
 
 /// One frame's lamps for the fog light, camera-relative (positions in metres from the eye).
@@ -160,20 +196,44 @@ struct FogLightFrame {
   const FogLightTable* table = nullptr;
   std::shared_ptr<const FogLightTable> table_owner;  ///< keeps `table` alive
   std::vector<Lamp> lamps;
+  /// Floats of all lamps' blocks in fogLightCoefficients' output (fogLightFloats summed).
+  [[nodiscard]] std::size_t floats() const noexcept;
 };
 
-/// Each lamp's s = K_t² Σ_k Ī_k c_k(K_t r) at the camera-relative point `x` (m), into
-/// out[4 ℓ … 4 ℓ + 3] for lamp ℓ (0 where K_t r > 32 or r = 0): its fog light on an element of
-/// unit normal n there is E = s0 μ⁺ + s1 + s2 μ + s3 P₂(μ) lux (clamp at 0), μ = n · (lamp − x)/r.
-/// Returns the distance to the nearest lamp that counts (m; +inf: none). Reentrant.
+/// Floats of a measured lamp's block (fogLightLamp): s0 … s3, then D0 … D3 (camera-relative world
+/// vectors, 3 floats each).
+inline constexpr std::size_t kFogLightFloats = FogLightTable::kLampFloats;
+/// Floats of lamp `l`'s block: kFogLightFloats with an annulus map, 4 for an isotropic lamp (no
+/// dipole: its light is the same on every side).
+[[nodiscard]] inline std::size_t fogLightFloats(const FogLightFrame::Lamp& l) noexcept {
+  return l.map != nullptr ? kFogLightFloats : FogLightTable::kSymmetric;
+}
+
+/// Each lamp's s = K_t² Σ_k Ī_k c_k(K_t r) and D_q = K_t² Σ_k Ī₁_k g_kq(K_t r) at the camera-relative
+/// point `x` (m), into consecutive blocks of fogLightFloats(lamp) floats, lamp after lamp (0
+/// where K_t r > 32 or r = 0; an isotropic lamp's block holds s alone): its
+/// fog light on an element of unit normal n there is E = Σ_q b_q(μ) (s_q + D_q · n) lux (clamp at
+/// 0), b = (μ⁺, 1, μ, P₂(μ)), μ = n · (lamp − x)/r. Returns the distance to the nearest lamp that
+/// counts (m; +inf: none). Reentrant.
 double fogLightCoefficients(const FogLightFrame& frame, const Vec3& x, float* out) noexcept;
 
-/// The same for lamp `lamp` alone, into out[0 … 3]; returns its distance (m).
+/// The same for lamp `lamp` alone, into out[0 … fogLightFloats(lamp)); returns its distance (m).
 double fogLightLamp(const FogLightFrame& frame, std::size_t lamp, const Vec3& x, float* out) noexcept;
 
-/// E of one lamp from its coefficients (fogLightCoefficients), clamped at 0.
-[[nodiscard]] inline float fogLightIrradiance(const float* s, float mu) noexcept {
-  const float e = s[0] * (mu > 0.0f ? mu : 0.0f) + s[1] + s[2] * mu + s[3] * (1.5f * mu * mu - 0.5f);
+/// E of one lamp from its block (fogLightCoefficients; `dipole`: it holds D, fogLightFloats = 16)
+/// on an element of unit normal (nx, ny, nz), camera-relative world frame, clamped at 0.
+[[nodiscard]] inline float fogLightIrradiance(const float* s, bool dipole, float mu, float nx, float ny,
+                                              float nz) noexcept {
+  const float b[4] = {mu > 0.0f ? mu : 0.0f, 1.0f, mu, 1.5f * mu * mu - 0.5f};
+  float e = 0.0f;
+  for (int q = 0; q < 4; ++q) {
+    float v = s[q];
+    if (dipole) {
+      const float* d = s + 4 + 3 * q;
+      v += d[0] * nx + d[1] * ny + d[2] * nz;
+    }
+    e += b[q] * v;
+  }
   return e > 0.0f ? e : 0.0f;
 }
 

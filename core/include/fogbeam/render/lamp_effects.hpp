@@ -154,9 +154,12 @@ struct ScatteredIrradiance {
 void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out,
                       bool frontOnly = false);
 /// The same about the lamp-frame unit direction `axis` of `profile`: 4 bands uniform in cos η ×
-/// 24 azimuths per annulus, `narrowBands` bands for annuli narrower than 10°.
+/// 24 azimuths per annulus, `narrowBands` bands for annuli narrower than 10°. `harmonic` (null:
+/// not wanted): per annulus the first azimuthal harmonic Ī₁ (cd, a lamp-frame vector
+/// perpendicular to `axis`) of I ≈ Ī + Ī₁ · ê, ê the unit vector of the azimuth about the axis:
+/// which side of the axis the light leaves on (fogbeam/render/fog_light.hpp).
 void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges, std::size_t bins, double* out,
-                  bool frontOnly = false, int narrowBands = 4);
+                  bool frontOnly = false, int narrowBands = 4, Vec3* harmonic = nullptr);
 /// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
 /// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
 [[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);

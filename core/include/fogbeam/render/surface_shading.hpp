@@ -13,8 +13,9 @@
 // tabulated grid interpolated bilinearly at the file's own angles (type A, B, C; every symmetry,
 // type C wrap-around) — no resampling, so cut-offs stay where the file puts them. Sky pixels
 // (d = +inf) get L_s = I_a. With the fog light on (ShadeFrame::fog_light; [glow] surfaces) each
-// lamp's term also gets the fog's scattered light E_fog (fogbeam/render/fog_light.hpp), its four
-// coefficients evaluated on an adaptive grid per band of 16 rows and blended between its nodes
+// lamp's term also gets the fog's scattered light E_fog (fogbeam/render/fog_light.hpp), its
+// coefficients (4, and 12 more for a measured lamp's dipole) evaluated on an adaptive grid per
+// band of 16 rows and blended between its nodes
 // (docs/physics.md, "Scattered light on surfaces").
 //
 // Why on the CPU: on llvmpipe a fragment shader pays ~6 ns per lamp and pixel for the lamp loop
@@ -130,9 +131,10 @@ void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int
 /// Shades the `count` pixels of image row j (column 0 first): at each pixel the nearer of the
 /// geometry buffer's surface (interleaved rows in SurfaceGBufferView's layouts; all three null:
 /// none) and the plane castPlanesRow found, into `outRgb` (3 floats a pixel, cd/m²) and
-/// `outDistance` [m]. `fogLight` (null: none): the fog's scattered light, lamp l's coefficients
-/// (fogLightCoefficients) of pixel i at fogLight[(4 l + q) · fogStride + i], q < 4, added to
-/// each lamp's direct illuminance; fogStride ≥ count + 64 (the last vector reads past the row).
+/// `outDistance` [m]. `fogLight` (null: none): the fog's scattered light, the floats of
+/// fogLightCoefficients (lamp after lamp, fogLightFloats each) of pixel i at
+/// fogLight[(o_l + q) · fogStride + i], o_l the first float of lamp l's block, added to each
+/// lamp's direct illuminance; fogStride ≥ count + 64 (the last vector reads past the row).
 /// SIMD, dispatched at run time; writes nothing beyond the row.
 void shadeRow(const ShadeFrame& frame, int j, int count, const float* normalRhoR, const float* rhoGB,
               const float* distance, const float* planeT, const std::int32_t* planeIndex, float* outRgb,
