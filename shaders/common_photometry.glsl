@@ -149,11 +149,11 @@ float lampIntensity(LampGpu L, vec3 wWorld) {
 
 // The fog's scattered light on a surface element (render/fog_light.hpp; the CPU's
 // FogLightTable::weighted and AnnulusMeanMap::lookup, per pixel here where the CPU blends them
-// over an adaptive grid): E_fog = Σ_q b_q(μ) (s_q + D_q · n) lux, b = (μ⁺, 1, μ, P₂(μ)),
-// μ = cos(incidence), s the lamp's coefficients at optical distance T = K_t r:
-// K_t² Σ_k Ī_k (κ, c0, c1, c2)_k(T), and D_q = K_t² Σ_k Ī₁_k g_kq(T) its dipoles (Ī_k, Ī₁_k the
-// lamp's annulus means and first harmonics about its direction to the point). uFogData (R32F):
-// the dense table [row][bin][8] (κ, c0, c1, c2, g0 … g3) from texel 0 (rows at T = 2^(−7 + i/16)
+// over an adaptive grid): E_fog = Σ_q b_q(μ) s_q + d_q(μ) D_q · n lux, b = (1, μ, two smoothed
+// ramps), d = (1, three smoothed steps) (fogLightBasis), μ = cos(incidence), s the lamp's
+// coefficients at optical distance T = K_t r: K_t² Σ_k Ī_k c_kq(T), and D_q = K_t² Σ_k Ī₁_k g_kq(T)
+// its dipoles (Ī_k, Ī₁_k the lamp's annulus means and first harmonics about its direction to the
+// point). uFogData (R32F): the dense table [row][bin][8] (c0 … c3, g0 … g3) from texel 0 (rows at T = 2^(−7 + i/16)
 // up to 1, then every 1/16 to 32), its sums of the first 4 over the bins [row][4] from uFogSums,
 // then the lamps' annulus maps (LampGpu.table.w; −1: an isotropic lamp, I₀ = params.x): rows of
 // the angle from the lamp's axis every 0.5° to 24°, then every 3°; uFogMapColumns azimuths every
@@ -172,6 +172,9 @@ const float FOG_DEG = 0.0174532925199433;
 const float FOG_FINE = 0.5 * FOG_DEG;
 const float FOG_FINE_ROWS = 48.0;
 const float FOG_FINE_END = FOG_FINE_ROWS * FOG_FINE;
+// fogLightBasis's widths: kFogRampWidth, kFogStepWidth.
+const vec2 FOG_RAMP = vec2(0.01, 0.1);
+const vec3 FOG_STEP = vec3(0.3, 0.005, 0.04);
 
 float fogValue(int i) { return texelFetch(uFogData, i).r; }
 vec4 fogRow4(int i) { return vec4(fogValue(i), fogValue(i + 1), fogValue(i + 2), fogValue(i + 3)); }
@@ -215,8 +218,11 @@ float fogLight(LampGpu L, vec3 wWorld, float r, float mu, vec3 n) {
     }
   }
   float scale = uExtinction * uExtinction * (T < FOG_T_FIRST ? FOG_T_FIRST / T : 1.0);
-  vec4 c = scale * (s + dn);
-  return max(c.x * max(mu, 0.0) + c.y + c.z * mu + c.w * (1.5 * mu * mu - 0.5), 0.0);
+  float mu2 = mu * mu;
+  vec4 b = vec4(1.0, mu, 0.5 * (mu + sqrt(mu2 + FOG_RAMP.x * FOG_RAMP.x)), 0.5 * (mu + sqrt(mu2 + FOG_RAMP.y * FOG_RAMP.y)));
+  vec4 d = vec4(1.0, mu / sqrt(mu2 + FOG_STEP.x * FOG_STEP.x), mu / sqrt(mu2 + FOG_STEP.y * FOG_STEP.y),
+                mu / sqrt(mu2 + FOG_STEP.z * FOG_STEP.z));
+  return max(scale * (dot(b, s) + dot(d, dn)), 0.0);
 }
 
 // L(S) [cd/m², rgb] of a Lambertian point p (camera-relative, m) with unit normal n facing the

@@ -118,9 +118,9 @@ struct GlSurfacePass::Impl {
   GLint meshAnchor = -1, meshClip = -1, meshExtinction = -1, meshAmbient = -1, meshLampCount = -1;
   // The fog light's uniforms (common_photometry.glsl), per program: bins, sums, map rows, columns.
   std::array<GLint, 4> planeFog{-1, -1, -1, -1}, meshFog{-1, -1, -1, -1};
-  // With shading in the shaders: the frame's fog light (SurfaceShader::prepare builds its table
-  // and annulus maps; the shaders read them from LampUpload's fog texture).
-  kernels::ShadeFrame gpuFogFrame;
+  // With shading in the shaders: the frame's fog light (SurfaceShader::prepareFogLight builds its
+  // table and annulus maps; the shaders read them from LampUpload's fog texture).
+  FogLightFrame gpuFog;
 
   // Geometry: the full-screen triangle has no attributes; the glTF mesh (positions relative to
   // its anchor, float) and the planes (double, relative to the eye).
@@ -400,8 +400,8 @@ struct GlSurfacePass::Impl {
       if (Status s = airlight.prepare(scene); !s) return s;
     }
     if (!cpuShading) {  // the shaders light the fog light too: its table and maps (built once)
-      shader.prepare(scene, gpuFogFrame);
-      if (Status s = lamps.ensureFogLight(gpuFogFrame.fog_light); !s) return s;
+      shader.prepareFogLight(scene, gpuFog);
+      if (Status s = lamps.ensureFogLight(gpuFog); !s) return s;
     }
     lamps.uploadLamps(scene);
     uploadPlanes(scene);

@@ -52,25 +52,35 @@ double mapRow(double alpha) {  // fractional row of α
 
 // Normals of the fit: μ_j = cos of the angle between the normal and the lamp's direction,
 // uniform in [−1, 1].
-constexpr std::size_t kMuNodes = 41;
-double muNode(std::size_t j) { return -1.0 + 2.0 * static_cast<double>(j) / static_cast<double>(kMuNodes - 1); }
+// The fit's normals: μ = ±u², u uniform in [−1, 1] (81 nodes). Both the irradiance's kink and the
+// dipole's step at μ = 0 are as wide as the sine of the angle the light arrives at from the
+// lamp's direction (a few degrees for the first bins), so the nodes crowd there (0.0006, 0.0025,
+// 0.0056, … apart), where a road seeing a lamp along it sits; 0.05 apart near ±1.
+constexpr std::size_t kFitNodes = 81;
+double fitNode(std::size_t j) {
+  const double u = -1.0 + 2.0 * static_cast<double>(j) / static_cast<double>(kFitNodes - 1);
+  return u * std::abs(u);
+}
 
-// E(μ) ≈ κ μ⁺ + c0 + c1 μ + c2 P₂(μ) through E(μ_j) by least squares weighted by
-// 1 / (E + 0.02 E(1))²: nearly relative. The μ⁺ term is the light that arrives from close to the
-// lamp's direction (its clamped cosine has a kink at grazing incidence no polynomial follows);
-// the rest is smooth. Gaussian elimination with partial pivoting on the 4 × 4 normal equations.
-// out = {κ, c0, c1, c2}; all zero when E is. `scale`: the E(1) of the floor (the dipole's G, whose
-// largest value is not at μ = 1, passes its own largest).
-void fitIrradiance(const std::vector<double>& E, double* out, double scale) {
+// F(μ) ≈ Σ_q c_q b_q(μ) through F(μ_j), b the symmetric or the dipole functions of fogLightBasis,
+// by least squares weighted by 1 / (|F| + 0.02 scale)²: nearly relative. Gaussian elimination with
+// partial pivoting on the 4 × 4 normal equations; out all zero when F is (or scale is 0).
+// (The symmetric part was fitted first as κ μ⁺ + a Legendre quadratic on 41 uniform nodes: −6 to
+// −22 % at μ = 0 exactly, and 0.77 of the irradiance of a road 40 m ahead of a low beam, whose μ is
+// 0.016; with the smoothed ramps 1.0 there. Truncating the Funk–Hecke series of the clamped
+// cosine at l = 2 instead rang: +40 % at grazing incidence and negative facing away.)
+void fitBasis(const std::vector<double>& F, double scale, bool dipole, double* out) {
   for (int q = 0; q < 4; ++q) out[q] = 0.0;
   const double floor = 0.02 * scale;
   if (!(floor > 0.0)) return;
   double A[4][5] = {};
-  for (std::size_t j = 0; j < E.size(); ++j) {
-    const double mu = muNode(j), p[4] = {std::max(mu, 0.0), 1.0, mu, 0.5 * (3.0 * mu * mu - 1.0)};
-    const double w = 1.0 / ((E[j] + floor) * (E[j] + floor));
+  for (std::size_t j = 0; j < F.size(); ++j) {
+    double p[4];
+    if (dipole) fogLightBasis(fitNode(j), static_cast<double*>(nullptr), p);
+    else fogLightBasis(fitNode(j), p, static_cast<double*>(nullptr));
+    const double w = 1.0 / ((std::abs(F[j]) + floor) * (std::abs(F[j]) + floor));
     for (int r = 0; r < 4; ++r) {
-      A[r][4] += w * p[r] * E[j];
+      A[r][4] += w * p[r] * F[j];
       for (int q = 0; q < 4; ++q) A[r][q] += w * p[r] * p[q];
     }
   }
@@ -191,15 +201,13 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
         L[i * bins + k] = L1[i * bins + k] + f * shares[k];
       }
     }
-    // E_k(μ) exactly at kMuNodes normals (the azimuthal integral of max(0, ω·n) in closed
-    // form, as scatteredIrradiance), then c_k0 + c_k1 μ + c_k2 P₂(μ) by least squares weighted
-    // by 1 / (E_k(μ) + 0.02 E_k(1))²: nearly relative over μ ∈ [−1, 1]. (Truncating the
-    // Funk–Hecke series at l = 2 instead is the best fit over the sphere, but it rings: +40 % at
-    // grazing incidence, where a road sees a lamp, and it goes negative facing away.)
-    std::vector<double> E(kMuNodes);
+    // E_k(μ) exactly at kFitNodes normals (the azimuthal integral of max(0, ω·n) in closed
+    // form, as scatteredIrradiance), then fitted in fogLightBasis's symmetric functions
+    // (fitBasis).
+    std::vector<double> E(kFitNodes);
     for (std::size_t k = 0; k < bins; ++k) {
-      for (std::size_t j = 0; j < kMuNodes; ++j) {
-        const double ci = muNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
+      for (std::size_t j = 0; j < kFitNodes; ++j) {
+        const double ci = fitNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
         E[j] = glow_quadrature::integrateFromApex(theta, [&](std::size_t i) {
           const double a = std::cos(theta[i]) * ci, b = std::sin(theta[i]) * si;
           double w;
@@ -212,15 +220,15 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
         });
       }
       double c[kCoefficients];
-      fitIrradiance(E, c, E.back());
+      fitBasis(E, E.back(), false, c);
       // The dipole (header comment): G_k(μ) = ∫ l¹_k(θ) W₁(θ, μ) sin θ dθ / √(1 − μ²), W₁ the
       // azimuthal integral of cos φ max(0, μ cos θ + √(1 − μ²) sin θ cos φ) (n = μ a + √(1 − μ²) x̂,
       // φ from x̂): A sin φ0 + B φ0 with A = μ cos θ, B = √(1 − μ²) sin θ, cos φ0 = −A/B where the
       // element sees part of the ring; π B where it sees all of it (A ≥ B), 0 where none.
-      std::vector<double> G(kMuNodes);
+      std::vector<double> G(kFitNodes);
       double gMax = 0.0;
-      for (std::size_t j = 0; j < kMuNodes; ++j) {
-        const double ci = muNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
+      for (std::size_t j = 0; j < kFitNodes; ++j) {
+        const double ci = fitNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
         G[j] = glow_quadrature::integrateFromApex(theta, [&](std::size_t i) {
           const double st = std::sin(theta[i]), a = std::cos(theta[i]) * ci;
           double w1;  // W₁ / √(1 − μ²)
@@ -233,7 +241,7 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
         });
         gMax = std::max(gMax, G[j]);
       }
-      fitIrradiance(G, c + kSymmetric, gMax);
+      fitBasis(G, gMax, true, c + kSymmetric);
       // Stored as log E_k(1) (the envelope: positive, falls as e^{−T}) and the coefficients over
       // it (bounded), so that T interpolates smoothly.
       const double env = E.back();
@@ -365,9 +373,10 @@ double FogLightTable::irradiance(double opticalDistance, double mu, const double
   for (std::size_t k = 0; k < bins; ++k)
     for (std::size_t q = 0; q < kCoefficients; ++q)
       s[q] += (q < kSymmetric ? binMeans[k] : (dipoleDotN != nullptr ? dipoleDotN[k] : 0.0)) * c[k * kCoefficients + q];
-  const double b[kSymmetric] = {std::max(mu, 0.0), 1.0, mu, 0.5 * (3.0 * mu * mu - 1.0)};
+  double b[kSymmetric], bd[kSymmetric];
+  fogLightBasis(mu, b, bd);
   double e = 0.0;
-  for (std::size_t q = 0; q < kSymmetric; ++q) e += b[q] * (s[q] + s[kSymmetric + q]);
+  for (std::size_t q = 0; q < kSymmetric; ++q) e += b[q] * s[q] + bd[q] * s[kSymmetric + q];
   return std::max(0.0, e);
 }
 

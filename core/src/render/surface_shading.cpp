@@ -109,8 +109,7 @@ const kernels::ShadeTable* SurfaceShader::tableFor(const std::shared_ptr<const P
   return &tables_.back()->view;
 }
 
-void SurfaceShader::prepareFogLight(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool) {
-  FogLightFrame& f = frame.fog_light;
+void SurfaceShader::prepareFogLight(const Scene& scene, FogLightFrame& f, ThreadPool* pool) {
   f.table = nullptr;
   f.table_owner.reset();
   f.lamps.clear();
@@ -222,22 +221,22 @@ void SurfaceShader::prepare(const Scene& scene, kernels::ShadeFrame& frame, Thre
                },
                l.profile->model());
   }
-  prepareFogLight(scene, frame, pool);
+  prepareFogLight(scene, frame.fog_light, pool);
 }
 
 namespace {
 
-// The fog light (render/fog_light.hpp) over a band of kFogTile rows, lamp by lamp: an adaptive
-// grid of nodes where the lamp's coefficients are evaluated (fogLightLamp at the surface point the
-// pixel sees), blended in between. Each lamp has its own grid: a street lamp's light on the road
-// is smooth where a low beam's, near its cut-off, needs a node every few pixels. Cells start at
-// kFogTile pixels and are halved down to 2 px until
+// The fog light (render/fog_light.hpp) over a band of kFogTile rows: an adaptive grid (one for
+// all lamps) of nodes where the lamps' coefficients are evaluated (fogLightCoefficients at the
+// surface point the pixel sees), blended in between. Cells start at kFogTile pixels and are
+// halved down to 2 px until
 //   * the cell's pixels are on one surface: their inverse distances the corners' bilinear blend
 //     within kFogSameSurface (on a plane 1/depth is linear over the image; a silhouette breaks
 //     that), and
 //   * at the centre and the middles of the edges, evaluated, the corners' blend (as blend()
-//     weighs them) gives the lamp's irradiance facing it (s0 + s1 + s2 + s3) and edge-on to it
-//     (s1 − s3/2) within kFogTolerance of itself, or within the floor the eye cannot see there.
+//     weighs them) gives the lamps' irradiance facing each (μ = 1) and edge-on to it (μ = 0, the
+//     dipole's D0 included) within kFogTolerance of itself, or within the floor the eye cannot
+//     see there.
 // Beyond kFogFar mean free paths the blend is not judged (the eye sees less than e^{−7} of it).
 // A 2 px cell that still fails is evaluated pixel by pixel. Rows of the band's coefficients are
 // laid out as shadeRow reads them.
@@ -433,6 +432,11 @@ class FogTile {
     float wt[4];
     weights(k, xa, xb, ya, yb, x, y, wt);
     float miss1 = 0.0f, total1 = 0.0f, miss0 = 0.0f, total0 = 0.0f;
+    // The symmetric functions facing the lamp (μ = 1) and edge-on (μ = 0); edge-on the dipole is
+    // D0 · n (its other functions vanish at μ = 0), facing the lamp D · n = 0.
+    float b1[4], b0[4];
+    fogLightBasis(1.0f, b1, static_cast<float*>(nullptr));
+    fogLightBasis(0.0f, b0, static_cast<float*>(nullptr));
     std::size_t l = 0;
     for (const FogLightFrame::Lamp& lamp : f_.fog_light.lamps) {
       const std::size_t n = fogLightFloats(lamp);
@@ -440,18 +444,22 @@ class FogTile {
       for (std::size_t q = 0; q < n; ++q)
         for (int i = 0; i < 4; ++i) pred[q] += wt[i] * coef(k[i])[l + q];
       const float* v = coef(c) + l;
-      const float e1 = v[0] + v[1] + v[2] + v[3], p1 = pred[0] + pred[1] + pred[2] + pred[3];
-      const float e0 = v[1] - 0.5f * v[3], p0 = pred[1] - 0.5f * pred[3];
+      float e1 = 0.0f, p1 = 0.0f, e0 = 0.0f, p0 = 0.0f;
+      for (std::size_t q = 0; q < 4; ++q) {
+        e1 += b1[q] * v[q];
+        p1 += b1[q] * pred[q];
+        e0 += b0[q] * v[q];
+        p0 += b0[q] * pred[q];
+      }
       miss1 += std::abs(p1 - e1);
       total1 += std::abs(e1);
       miss0 += std::abs(p0 - e0);
       total0 += std::abs(e0);
       if (n > FogLightTable::kSymmetric) {
-        // The dipole edge-on (μ = 0, where it counts most; facing the lamp D · n = 0): the vector
-        // D1 − D3/2, its miss and its length.
+        // The dipole edge-on: the vector D0, its miss and its length.
         float dm = 0.0f, dv = 0.0f;
         for (std::size_t e = 0; e < 3; ++e) {
-          const float want = v[7 + e] - 0.5f * v[13 + e], got = pred[7 + e] - 0.5f * pred[13 + e];
+          const float want = v[4 + e], got = pred[4 + e];
           dm += (got - want) * (got - want);
           dv += want * want;
         }
@@ -516,6 +524,8 @@ float fogLightFloor(const kernels::ShadeFrame& frame, const SurfaceGBufferView& 
   planeIndex.resize(W);
   coef.resize(frame.fog_light.floats());
   const float kt = static_cast<float>(frame.fog_light.extinction);
+  float b1[4];
+  fogLightBasis(1.0f, b1, static_cast<float*>(nullptr));
   float largest = 0.0f;
   for (int y = kSparse / 2; y < g.height; y += kSparse) {
     kernels::castPlanesRow(frame, y, g.width, planeT.data(), planeIndex.data());
@@ -526,10 +536,10 @@ float fogLightFloor(const kernels::ShadeFrame& frame, const SurfaceGBufferView& 
       const float d = std::min(gd, planeT[xi]);
       if (!std::isfinite(d)) continue;
       fogLightCoefficients(frame.fog_light, pixelPoint(frame, x, y, d), coef.data());
-      float e = 0.0f;  // Σ over lamps of s0 + s1 + s2 + s3 (facing the lamp, where D · n = 0)
+      float e = 0.0f;  // Σ over lamps of E facing them (where D · n = 0)
       std::size_t l = 0;
       for (const FogLightFrame::Lamp& lamp : frame.fog_light.lamps) {
-        for (std::size_t q = 0; q < FogLightTable::kSymmetric; ++q) e += coef[l + q];
+        for (std::size_t q = 0; q < FogLightTable::kSymmetric; ++q) e += b1[q] * coef[l + q];
         l += fogLightFloats(lamp);
       }
       largest = std::max(largest, e * std::exp(-kt * d));

@@ -267,23 +267,30 @@ HWY_INLINE void ShadeVector(const ShadeFrame& fr, int j, int i, const float* HWY
       const MF lit = hn::And(hn::And(hit, away), hn::Gt(cosInc, zero));
       VF e = zero;
       if (fog != nullptr) {
-        // The fog's scattered light (render/fog_light.hpp): Σ_q b_q(μ) (s_q + D_q · n),
-        // b = (μ⁺, 1, μ, P₂(μ)), μ = cos i, on every surface pixel whatever side it faces.
+        // The fog's scattered light (render/fog_light.hpp): Σ_q b_q(μ) s_q + d_q(μ) D_q · n, b and
+        // d fogLightBasis's (1, μ, two smoothed ramps; 1, three smoothed steps), μ = cos i, on
+        // every surface pixel whatever side it faces.
         const float* fl = fog + fogRow * stride;
         const bool dipole = fr.fog_light.lamps[l].map != nullptr;
         fogRow += fogLightFloats(fr.fog_light.lamps[l]);
-        VF s0 = hn::LoadU(d, fl), s1 = hn::LoadU(d, fl + stride), s2 = hn::LoadU(d, fl + 2 * stride),
-           s3 = hn::LoadU(d, fl + 3 * stride);
+        const VF mu = cosInc, mu2 = hn::Mul(cosInc, cosInc), half = hn::Set(d, 0.5f);
+        auto ramp = [&](double w) {
+          return hn::Mul(half, hn::Add(mu, hn::Sqrt(hn::Add(mu2, hn::Set(d, static_cast<float>(w * w))))));
+        };
+        VF ef = hn::MulAdd(hn::LoadU(d, fl + stride), mu, hn::LoadU(d, fl));
+        ef = hn::MulAdd(hn::LoadU(d, fl + 2 * stride), ramp(kFogRampWidth[0]), ef);
+        ef = hn::MulAdd(hn::LoadU(d, fl + 3 * stride), ramp(kFogRampWidth[1]), ef);
         if (dipole) {
-          VF* sq[4] = {&s0, &s1, &s2, &s3};
           for (std::size_t q = 0; q < 4; ++q) {
             const float* dq = fl + (4 + 3 * q) * stride;
-            *sq[q] = hn::MulAdd(hn::LoadU(d, dq), nx,
-                                hn::MulAdd(hn::LoadU(d, dq + stride), ny, hn::MulAdd(hn::LoadU(d, dq + 2 * stride), nz, *sq[q])));
+            const VF dn = hn::MulAdd(hn::LoadU(d, dq), nx,
+                                     hn::MulAdd(hn::LoadU(d, dq + stride), ny, hn::Mul(hn::LoadU(d, dq + 2 * stride), nz)));
+            const VF dq_mu = q == 0 ? one
+                                    : hn::Div(mu, hn::Sqrt(hn::Add(mu2, hn::Set(d, static_cast<float>(kFogStepWidth[q - 1] *
+                                                                                                     kFogStepWidth[q - 1])))));
+            ef = hn::MulAdd(dn, dq_mu, ef);
           }
         }
-        const VF p2 = hn::MulSub(hn::Set(d, 1.5f), hn::Mul(cosInc, cosInc), hn::Set(d, 0.5f));
-        const VF ef = hn::MulAdd(s0, hn::Max(cosInc, zero), hn::MulAdd(s2, cosInc, hn::MulAdd(s3, p2, s1)));
         e = hn::IfThenElseZero(hit, hn::Max(ef, zero));
       }
       if (hn::AllFalse(d, lit)) {

@@ -17,11 +17,12 @@
 //   (law of sines in the triangle X, lamp, scattering point: the scattering angle is θ + η),
 //   orders ≥ 2: f(T, θ, Ω) share_k(T, θ) from the multiple-scattering table.
 // The irradiance of a Lambertian element with unit normal n is E = ∫ L(ω) max(0, ω·n) dω, for a
-// radiance symmetric about a a function of μ = n·a alone. FogLightTable computes it exactly at 41
-// values of μ and fits, per bin and T node,
-//   E_k(μ) ≈ κ_k μ⁺ + c_k0 + c_k1 μ + c_k2 P₂(μ)                         [lux per cd, K_t = 1 /m]
-// (weighted least squares, nearly relative: the μ⁺ term is the light from close to the lamp's
-// direction, whose clamped cosine has a kink at grazing incidence that no polynomial follows).
+// radiance symmetric about a a function of μ = n·a alone. FogLightTable computes it exactly at 81
+// values of μ (crowding to μ = 0, grazing incidence) and fits, per bin and T node,
+//   E_k(μ) ≈ Σ_q c_kq b_q(μ),  b = (1, μ, r_0.01(μ), r_0.1(μ))          [lux per cd, K_t = 1 /m]
+// (weighted least squares, nearly relative; r_σ(μ) = (μ + √(μ² + σ²))/2, smoothed ramps: the
+// light from close to the lamp's direction has a kink at grazing incidence, μ⁺ for the lamp's
+// direction itself, smoothed over the angle it arrives from; fogLightBasis).
 //
 // Which side of the lamp–point axis the light leaves on (a low beam lights the road below the
 // axis to a point ahead and the fog above it hardly at all): the annulus's first azimuthal
@@ -30,12 +31,13 @@
 // axis as ω, so order 1 gives the radiance l¹_k(T, θ) Ī₁_k · ω̂⊥, and the element's irradiance
 // from it is (Ī₁_k · n) G_k(μ) with
 //   G_k(μ) = ∫ l¹_k(θ) W₁(θ, μ) sin θ dθ / √(1 − μ²),  W₁ = ∫ cos φ max(0, ω·n) dφ,
-// fitted in the same four functions of μ. Orders ≥ 2 keep only the ring mean (the light that
+// fitted as Σ_q g_kq d_q(μ), d = (1, and smoothed steps μ/√(μ² + σ²), σ = 0.3, 0.005, 0.04: G_k is a
+// step at μ = 0 as wide as the sine of the angle its light arrives at). Orders ≥ 2 keep only the ring mean (the light that
 // scattered twice has mostly forgotten the side it left on; the path tracer is the judge:
-// docs/airlight.md). So a lamp's fog light at a point is s = K_t² Σ_k Ī_k (κ_k, c_k0, c_k1, c_k2)
-// and four vectors D_q = K_t² Σ_k Ī₁_k g_kq, all depending on the point's position only
-// (fogLightLamp); the normal enters per pixel (fogLightIrradiance):
-//   E = Σ_q b_q(μ) (s_q + D_q · n),   b = (μ⁺, 1, μ, P₂(μ)).
+// docs/airlight.md). So a lamp's fog light at a point is s_q = K_t² Σ_k Ī_k c_kq and four vectors
+// D_q = K_t² Σ_k Ī₁_k g_kq, all depending on the point's position only (fogLightLamp); the normal
+// enters per pixel (fogLightIrradiance):
+//   E = Σ_q b_q(μ) s_q + d_q(μ) D_q · n.
 // The surface layer evaluates s on an adaptive grid and blends it between nodes (SurfaceShader,
 // fogbeam/render/surface_shading.hpp).
 //
@@ -54,6 +56,7 @@
 #include <fogbeam/util/result.hpp>
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <vector>
@@ -63,13 +66,13 @@ namespace fogbeam {
 class MultipleScatteringTable;
 class ThreadPool;
 
-/// The coefficients (κ_k, c_k0, c_k1, c_k2)(T) and the dipole's g_k0 … g_k3 of the header comment
+/// The coefficients c_k0 … c_k3 (T) and the dipole's g_k0 … g_k3 of the header comment
 /// for one phase function and albedo, on T = 2^(−7) … 2^5 at 2^(1/4); per cd of each emission
 /// bin's mean intensity (harmonic), K_t = 1 /m.
 class FogLightTable {
  public:
-  static constexpr std::size_t kSymmetric = 4;     ///< κ, c0, c1, c2: the functions of μ
-  static constexpr std::size_t kCoefficients = 8;  ///< per bin: κ, c0, c1, c2, then the dipole's g0 … g3
+  static constexpr std::size_t kSymmetric = 4;     ///< c0 … c3: the functions of μ (fogLightBasis)
+  static constexpr std::size_t kCoefficients = 8;  ///< per bin: c0 … c3, then the dipole's g0 … g3
   /// weighted()'s output: s0 … s3, then D0 … D3 (3 floats each).
   static constexpr std::size_t kLampFloats = kSymmetric + 3 * kSymmetric;
   /// Order 1 by Gauss–Legendre quadrature over η (per bin, 8 points per piece, pieces ≤ 3°,
@@ -94,13 +97,13 @@ class FogLightTable {
   /// Emission bin edges η_k, radians, 0 … π.
   [[nodiscard]] const std::vector<double>& edges() const noexcept { return edges_; }
   [[nodiscard]] double albedo() const noexcept { return albedo_; }
-  /// c[k · kCoefficients + q] (κ, c0, c1, c2, g0 … g3 of bin k) at optical distance T (per cd, K_t = 1 /m):
+  /// c[k · kCoefficients + q] (c0 … c3, g0 … g3 of bin k) at optical distance T (per cd, K_t = 1 /m):
   /// between the fit's nodes log-linear in T for E_k(μ = 1) and linear for the coefficients over
   /// it, read from a dense resampling of that (linear between its rows); below the first node
   /// c ∝ 1/T (order 1's limit: the light gathered within a few mean free paths); above the last
   /// node (T = 32, where the light has fallen by e^{−32}) 0. `c` holds bins() · kCoefficients values.
   void coefficients(double opticalDistance, double* c) const noexcept;
-  /// Σ_k binMeans[k] (κ, c0, c1, c2)_k(T) × scale into out[0 … 3] and Σ_k binDipoles[3k … 3k+2]
+  /// Σ_k binMeans[k] (c0 … c3)_k(T) × scale into out[0 … 3] and Σ_k binDipoles[3k … 3k+2]
   /// g_kq(T) × scale into out[4 + 3q … 6 + 3q] (in the dipoles' frame), in float, from the dense
   /// table; binMeans null: an isotropic lamp (every mean 1, no dipole); binDipoles null: none.
   /// out holds kLampFloats. The frames' look-up.
@@ -117,7 +120,7 @@ class FogLightTable {
 
   /// The dense table the frames read, for the shaders (shaders/common_photometry.glsl mirrors
   /// weighted()): rows at T = 2^(−7 + i/16) for i ≤ kDenseLog, then 1 + (i − kDenseLog)/16 up
-  /// to 32; row i holds bins() × kCoefficients floats (κ, c0, c1, c2, g0 … g3 per bin),
+  /// to 32; row i holds bins() × kCoefficients floats (c0 … c3, g0 … g3 per bin),
   /// denseSums() row i the sums of the first 4 over the bins.
   static constexpr std::size_t kDenseLog = 7 * 16, kDenseNodes = kDenseLog + 31 * 16 + 1;
   [[nodiscard]] const std::vector<float>& dense() const noexcept { return dense_; }
@@ -200,6 +203,34 @@ struct FogLightFrame {
   [[nodiscard]] std::size_t floats() const noexcept;
 };
 
+/// The fog light's functions of μ (cos of the angle between the normal and the lamp's direction).
+/// Symmetric part: 1, μ and two smoothed ramps r_σ(μ) = (μ + √(μ² + σ²))/2 (σ = 0.01, 0.1): the
+/// light arriving from close to the lamp's direction has a kink at grazing incidence (μ⁺ for light
+/// from the lamp's direction itself), smoothed over the angle it arrives from. Dipole: 1 and three
+/// smoothed steps μ/√(μ² + σ²) (σ = 0.3, 0.005, 0.04): G_k is a step about μ = 0 as wide as the
+/// sine of that angle (docs/physics.md, "Scattered light on surfaces"). T: float or double.
+inline constexpr double kFogRampWidth[2] = {0.01, 0.1};
+inline constexpr double kFogStepWidth[3] = {0.3, 0.005, 0.04};
+template <class T>
+inline void fogLightBasis(T mu, T* sym, T* dip) noexcept {
+  const T mu2 = mu * mu;
+  if (sym != nullptr) {
+    sym[0] = T(1);
+    sym[1] = mu;
+    for (int i = 0; i < 2; ++i) {
+      const T w = static_cast<T>(kFogRampWidth[i]);
+      sym[2 + i] = T(0.5) * (mu + std::sqrt(mu2 + w * w));
+    }
+  }
+  if (dip != nullptr) {
+    dip[0] = T(1);
+    for (int i = 0; i < 3; ++i) {
+      const T w = static_cast<T>(kFogStepWidth[i]);
+      dip[1 + i] = mu / std::sqrt(mu2 + w * w);
+    }
+  }
+}
+
 /// Floats of a measured lamp's block (fogLightLamp): s0 … s3, then D0 … D3 (camera-relative world
 /// vectors, 3 floats each).
 inline constexpr std::size_t kFogLightFloats = FogLightTable::kLampFloats;
@@ -212,9 +243,9 @@ inline constexpr std::size_t kFogLightFloats = FogLightTable::kLampFloats;
 /// Each lamp's s = K_t² Σ_k Ī_k c_k(K_t r) and D_q = K_t² Σ_k Ī₁_k g_kq(K_t r) at the camera-relative
 /// point `x` (m), into consecutive blocks of fogLightFloats(lamp) floats, lamp after lamp (0
 /// where K_t r > 32 or r = 0; an isotropic lamp's block holds s alone): its
-/// fog light on an element of unit normal n there is E = Σ_q b_q(μ) (s_q + D_q · n) lux (clamp at
-/// 0), b = (μ⁺, 1, μ, P₂(μ)), μ = n · (lamp − x)/r. Returns the distance to the nearest lamp that
-/// counts (m; +inf: none). Reentrant.
+/// fog light on an element of unit normal n there is E = Σ_q b_q(μ) s_q + d_q(μ) D_q · n lux (clamp
+/// at 0), b, d the functions of fogLightBasis, μ = n · (lamp − x)/r. Returns the distance to the
+/// nearest lamp that counts (m; +inf: none). Reentrant.
 double fogLightCoefficients(const FogLightFrame& frame, const Vec3& x, float* out) noexcept;
 
 /// The same for lamp `lamp` alone, into out[0 … fogLightFloats(lamp)); returns its distance (m).
@@ -224,15 +255,15 @@ double fogLightLamp(const FogLightFrame& frame, std::size_t lamp, const Vec3& x,
 /// on an element of unit normal (nx, ny, nz), camera-relative world frame, clamped at 0.
 [[nodiscard]] inline float fogLightIrradiance(const float* s, bool dipole, float mu, float nx, float ny,
                                               float nz) noexcept {
-  const float b[4] = {mu > 0.0f ? mu : 0.0f, 1.0f, mu, 1.5f * mu * mu - 0.5f};
+  float b[4], bd[4];
+  fogLightBasis(mu, b, bd);
   float e = 0.0f;
   for (int q = 0; q < 4; ++q) {
-    float v = s[q];
+    e += b[q] * s[q];
     if (dipole) {
       const float* d = s + 4 + 3 * q;
-      v += d[0] * nx + d[1] * ny + d[2] * nz;
+      e += bd[q] * (d[0] * nx + d[1] * ny + d[2] * nz);
     }
-    e += b[q] * v;
   }
   return e > 0.0f ? e : 0.0f;
 }

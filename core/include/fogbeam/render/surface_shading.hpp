@@ -149,6 +149,10 @@ class SurfaceShader {
   /// `surfaces`), its table (once per phase function and albedo, ~0.2 s) and each profile's
   /// annulus map (once per profile, ~0.3 s) are built on first use, on `pool` when given.
   void prepare(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool = nullptr);
+  /// The fog light's part of prepare() alone (GPU shading, where the shaders read the table and
+  /// maps): `fog` emptied when it is off or the fog's phase function has no multiple-scattering
+  /// table; the same thread-safety as prepare().
+  void prepareFogLight(const Scene& scene, FogLightFrame& fog, ThreadPool* pool = nullptr);
   /// L_s and the distance of every pixel into `out` (resized; row 0 at the top), from the
   /// geometry buffer `g` of the frame `frame` was prepared for. Rows are spread over `pool`
   /// (null: the calling thread).
@@ -184,7 +188,6 @@ class SurfaceShader {
     std::shared_ptr<const AnnulusMeanMap> map;
   };
   std::vector<FogMap> fogMaps_;
-  void prepareFogLight(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool);
 
 };
 
