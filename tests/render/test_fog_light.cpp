@@ -221,24 +221,16 @@ TEST(FogLight, TheHarmonicCarriesTheSideOfTheAxisTheLightLeavesOn) {
       // radiance per bin, fogLightOrder1), to tell the fits' error from the harmonic's.
       double unfitted = 0.0;
       {
-        const double mu = d.z / R, si = std::sqrt(1.0 - mu * mu), T = kt * R;
+        const double mu = d.z / R, T = kt * R;
         const auto& edges = ms->emissionEdges();
         constexpr int kTheta = 4000;  // log-spaced from 1e-5 rad: the radiance peaks at the lamp
         const double la = std::log(1e-5), lb = std::log(kPi);
         for (int i = 0; i < kTheta; ++i) {
           const double th = std::exp(la + (lb - la) * (i + 0.5) / kTheta), dth = th * (lb - la) / kTheta;
-          const double ct = std::cos(th), st = std::sin(th), a = ct * mu, b = st * si;
-          double w0, w1;  // ∫ max(0, ω·n) dφ and ∫ cos φ max(0, ω·n) dφ / √(1 − μ²)
-          if (b <= std::abs(a)) {
-            w0 = 2.0 * kPi * std::max(a, 0.0);
-            w1 = a > 0.0 ? kPi * st : 0.0;
-          } else {
-            const double phi0 = std::acos(std::clamp(-a / b, -1.0, 1.0));
-            w0 = 2.0 * (a * phi0 + b * std::sin(phi0));
-            w1 = a * std::sin(phi0) / si + st * phi0;
-          }
+          const FogLightAzimuthal w = fogLightAzimuthal(th, mu);
           for (std::size_t k = 0; k < bins; ++k)
-            unfitted += fogLightOrder1(fog.phase, T, th, edges[k], edges[k + 1]) * (means[k] * w0 + dotN[k] * w1) * st * dth;
+            unfitted += fogLightOrder1(fog.phase, T, th, edges[k], edges[k + 1]) * (means[k] * w.w0 + dotN[k] * w.w1) *
+                        std::sin(th) * dth;
         }
         unfitted *= kt * kt;
       }

@@ -150,6 +150,13 @@ void order1Bins(const Phase& phase, double T, double theta, const std::vector<do
 
 }  // namespace
 
+FogLightAzimuthal fogLightAzimuthal(double theta, double mu) noexcept {
+  const double si = std::sqrt(std::max(0.0, 1.0 - mu * mu)), st = std::sin(theta), a = std::cos(theta) * mu, b = st * si;
+  if (b <= std::abs(a)) return {2.0 * kPi * std::max(a, 0.0), a > 0.0 ? kPi * st : 0.0};
+  const double phi0 = std::acos(std::clamp(-a / b, -1.0, 1.0));
+  return {2.0 * (a * phi0 + b * std::sin(phi0)), a * std::sin(phi0) / si + st * phi0};
+}
+
 double fogLightOrder1(const Phase& phase, double opticalDistance, double theta, double eta0, double eta1) noexcept {
   const std::vector<double> edges{eta0, eta1};
   double out = 0.0;
@@ -188,6 +195,22 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
   std::vector<double> theta(kThetaNodes);
   for (std::size_t i = 0; i < kThetaNodes; ++i) theta[i] = glow_quadrature::glowNodeAngle(i, kThetaNodes);
 
+  // The integrals over θ at each fit normal as weights on the θ nodes (the same for every bin and
+  // T): integrateFromApex's rule times sin θ times the azimuthal integrals of the clamped cosine,
+  //   E: W₀ = ∫ max(0, ω·n) dφ = 2 (A φ0 + B sin φ0),
+  //   G: W₁ / √(1 − μ²), W₁ = ∫ cos φ max(0, ω·n) dφ = A sin φ0 + B φ0 (header comment),
+  // with n = μ a + √(1 − μ²) x̂, A = μ cos θ, B = √(1 − μ²) sin θ, cos φ0 = −A/B where the element
+  // sees part of the ring about a; where it sees all of it (A ≥ B) W₀ = 2π A, W₁ = π B; none: 0.
+  std::vector<double> rule(kThetaNodes, 0.0);
+  for (std::size_t i = 1; i < kThetaNodes; ++i)
+    rule[i] = glow_quadrature::integrateFromApex(theta, [&](std::size_t m) { return m == i ? 1.0 : 0.0; });
+  std::vector<double> wE(kFitNodes * kThetaNodes, 0.0), wG(kFitNodes * kThetaNodes, 0.0);
+  for (std::size_t j = 0; j < kFitNodes; ++j)
+    for (std::size_t i = 1; i < kThetaNodes; ++i) {
+      const FogLightAzimuthal w = fogLightAzimuthal(theta[i], fitNode(j));
+      wE[j * kThetaNodes + i] = rule[i] * w.w0 * std::sin(theta[i]);
+      wG[j * kThetaNodes + i] = rule[i] * w.w1 * std::sin(theta[i]);
+    }
   auto node = [&](std::size_t iT) {
     const double T = t->t_[iT];
     // L_k(θ_i) (K_t = 1 /m, 1 cd): Ω l¹_k + f share_k; L1 the order-1 part alone (the dipole's).
@@ -201,46 +224,25 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
         L[i * bins + k] = L1[i * bins + k] + f * shares[k];
       }
     }
-    // E_k(μ) exactly at kFitNodes normals (the azimuthal integral of max(0, ω·n) in closed
-    // form, as scatteredIrradiance), then fitted in fogLightBasis's symmetric functions
-    // (fitBasis).
-    std::vector<double> E(kFitNodes);
+    // E_k(μ_j) = Σ_i L_k(θ_i) wE[j][i] and G_k(μ_j) = Σ_i L¹_k(θ_i) wG[j][i] (the weights below),
+    // then fitted in fogLightBasis's functions (fitBasis).
+    std::vector<double> E(kFitNodes), G(kFitNodes);
     for (std::size_t k = 0; k < bins; ++k) {
+      double gMax = 0.0;
       for (std::size_t j = 0; j < kFitNodes; ++j) {
-        const double ci = fitNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
-        E[j] = glow_quadrature::integrateFromApex(theta, [&](std::size_t i) {
-          const double a = std::cos(theta[i]) * ci, b = std::sin(theta[i]) * si;
-          double w;
-          if (b <= std::abs(a)) w = 2.0 * kPi * std::max(a, 0.0);
-          else {
-            const double phi0 = std::acos(std::clamp(-a / b, -1.0, 1.0));
-            w = 2.0 * (a * phi0 + b * std::sin(phi0));
-          }
-          return L[i * bins + k] * w * std::sin(theta[i]);
-        });
+        const double* we = wE.data() + j * kThetaNodes;
+        const double* wg = wG.data() + j * kThetaNodes;
+        double e = 0.0, g = 0.0;
+        for (std::size_t i = 1; i < kThetaNodes; ++i) {
+          e += L[i * bins + k] * we[i];
+          g += L1[i * bins + k] * wg[i];
+        }
+        E[j] = e;
+        G[j] = g;
+        gMax = std::max(gMax, g);
       }
       double c[kCoefficients];
       fitBasis(E, E.back(), false, c);
-      // The dipole (header comment): G_k(μ) = ∫ l¹_k(θ) W₁(θ, μ) sin θ dθ / √(1 − μ²), W₁ the
-      // azimuthal integral of cos φ max(0, μ cos θ + √(1 − μ²) sin θ cos φ) (n = μ a + √(1 − μ²) x̂,
-      // φ from x̂): A sin φ0 + B φ0 with A = μ cos θ, B = √(1 − μ²) sin θ, cos φ0 = −A/B where the
-      // element sees part of the ring; π B where it sees all of it (A ≥ B), 0 where none.
-      std::vector<double> G(kFitNodes);
-      double gMax = 0.0;
-      for (std::size_t j = 0; j < kFitNodes; ++j) {
-        const double ci = fitNode(j), si = std::sqrt(std::max(0.0, 1.0 - ci * ci));
-        G[j] = glow_quadrature::integrateFromApex(theta, [&](std::size_t i) {
-          const double st = std::sin(theta[i]), a = std::cos(theta[i]) * ci;
-          double w1;  // W₁ / √(1 − μ²)
-          if (si * st <= std::abs(a)) w1 = a > 0.0 ? kPi * st : 0.0;
-          else {
-            const double phi0 = std::acos(std::clamp(-a / (si * st), -1.0, 1.0));
-            w1 = a * std::sin(phi0) / si + st * phi0;
-          }
-          return L1[i * bins + k] * w1 * st;
-        });
-        gMax = std::max(gMax, G[j]);
-      }
       fitBasis(G, gMax, true, c + kSymmetric);
       // Stored as log E_k(1) (the envelope: positive, falls as e^{−T}) and the coefficients over
       // it (bounded), so that T interpolates smoothly.

@@ -241,6 +241,7 @@ namespace {
 // A 2 px cell that still fails is evaluated pixel by pixel. Rows of the band's coefficients are
 // laid out as shadeRow reads them.
 constexpr int kFogTile = 16;
+constexpr std::size_t kFogColumns = 128;  // a band's columns per pass (a multiple of kFogTile)
 
 // The camera-relative point at distance d along pixel (i, j)'s ray (Camera::rayDirection).
 Vec3 pixelPoint(const kernels::ShadeFrame& f, double i, double j, double d) {
@@ -271,8 +272,9 @@ class FogTile {
       : f_(frame), g_(g), w_(g.width), h_(g.height), nq_(frame.fog_light.floats()), stride_(stride),
         mfp_(1.0f / static_cast<float>(frame.fog_light.extinction)), floor_(floor), sc_(scratch) {}
 
-  // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom): their planes (for shadeRow) and fog light.
-  void fill(int j0, std::vector<float>& planeT, std::vector<std::int32_t>& planeIndex, std::vector<float>& rows) {
+  // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom): their planes (for shadeRow) and distances;
+  // then columns() gives their fog light, a part of the width at a time.
+  void begin(int j0, std::vector<float>& planeT, std::vector<std::int32_t>& planeIndex) {
     j0_ = j0;
     yEnd_ = std::min(j0 + kFogTile, h_ - 1);  // the band's last node row (the next band's first)
     const int nRows = yEnd_ - j0 + 1;
@@ -285,8 +287,6 @@ class FogTile {
       sc_.nodeAt.resize(planeT.size());
       sc_.current = 0;
     }
-    rows.resize(static_cast<std::size_t>(kFogTile) * nq_ * stride_);
-    rows_ = rows.data();
     for (int y = j0; y <= yEnd_; ++y) {
       const std::size_t r = static_cast<std::size_t>(y - j0) * W;
       kernels::castPlanesRow(f_, y, w_, planeT.data() + r, planeIndex.data() + r);
@@ -304,12 +304,20 @@ class FogTile {
     }
     sc_.s.clear();
     sc_.nd.clear();
+  }
+
+  // The fog light of columns [x0, x1) of the band's rows into `rows` (row y's coefficient q at
+  // rows[((y − j0) · nq + q) · stride + x − x0]); x0 a multiple of kFogTile.
+  void columns(int x0, int x1, std::vector<float>& rows) {
+    rows.resize(static_cast<std::size_t>(kFogTile) * nq_ * stride_);
+    rows_ = rows.data();
+    x0_ = x0;
     if (f_.fog_light_exact) {
-      for (int y = j0; y < std::min(j0 + kFogTile, h_); ++y)
-        for (int x = 0; x < w_; ++x) put(x, y, node(x, y));
+      for (int y = j0_; y < std::min(j0_ + kFogTile, h_); ++y)
+        for (int x = x0; x < x1; ++x) put(x, y, node(x, y));
       return;
     }
-    for (int xa = 0; xa < w_; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0, yEnd_);
+    for (int xa = x0; xa < x1; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0_, yEnd_);
   }
 
  private:
@@ -319,7 +327,7 @@ class FogTile {
   std::size_t nq_, stride_;
   float mfp_, floor_;
   FogTileScratch& sc_;
-  int j0_ = 0, yEnd_ = 0;
+  int j0_ = 0, yEnd_ = 0, x0_ = 0;
   float* rows_ = nullptr;
   [[nodiscard]] std::size_t nc() const { return nq_; }  // floats per node: every lamp's block
 
@@ -348,7 +356,7 @@ class FogTile {
   [[nodiscard]] const float* coef(std::size_t n) const { return sc_.s.data() + nc() * n; }
   [[nodiscard]] float nodeDistance(std::size_t n) const { return sc_.nd[n]; }
   float* out(int x, int y, std::size_t q) {
-    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + q) * stride_ + static_cast<std::size_t>(x);
+    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + q) * stride_ + static_cast<std::size_t>(x - x0_);
   }
   void put(int x, int y, std::size_t n) {
     const float* c = coef(n);
@@ -563,7 +571,11 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
   // hand out cheaply, enough of them (45–90 at 720 rows) to balance two to sixteen threads.
   const std::size_t kBand = fog ? static_cast<std::size_t>(kFogTile) : 8;
   const std::size_t bands = (h + kBand - 1) / kBand;
-  const std::size_t nq = frame.fog_light.floats(), stride = w + 64;
+  // With the fog light a band goes kFogColumns columns at a time (its coefficient rows, up to 16
+  // per lamp and pixel, stay in the core's cache between the grid that writes them and the
+  // kernel that reads them; a whole 1280 px band of them is ~4.5 MB).
+  const std::size_t nq = frame.fog_light.floats();
+  const std::size_t columns = fog ? std::min<std::size_t>(w, kFogColumns) : w, stride = columns + 64;
   const float floor = fog && !frame.fog_light_exact ? fogLightFloor(frame, g) : 0.0f;
   auto band = [&](std::size_t b) {
     // The planes' distances and indices of the band's rows, and its fog light (sized once per thread).
@@ -573,19 +585,31 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
     const std::size_t j0 = b * kBand, j1 = std::min(h, (b + 1) * kBand);
     if (fog) {
       FogTile tile(frame, g, stride, floor, scratch);
-      tile.fill(static_cast<int>(j0), planeT, planeIndex, rows);
-    } else if (planeT.size() < w) {
+      tile.begin(static_cast<int>(j0), planeT, planeIndex);
+      for (std::size_t x0 = 0; x0 < w; x0 += columns) {
+        const std::size_t n = std::min(columns, w - x0);
+        tile.columns(static_cast<int>(x0), static_cast<int>(x0 + n), rows);
+        for (std::size_t j = j0; j < j1; ++j) {
+          const std::size_t src = g.bottom_up ? h - 1 - j : j;  // the G-buffer's row of image row j
+          const std::size_t p = w * src + x0, r = (j - j0) * w + x0;
+          kernels::shadeRow(frame, static_cast<int>(j), static_cast<int>(n), mesh ? g.normal_rho_r + 4 * p : nullptr,
+                            mesh ? g.rho_gb + 2 * p : nullptr, mesh ? g.distance + p : nullptr, planeT.data() + r,
+                            planeIndex.data() + r, out.rgb.data() + 3 * (w * j + x0), out.distance.data() + w * j + x0,
+                            rows.data() + (j - j0) * nq * stride, stride, static_cast<int>(x0));
+        }
+      }
+      return;
+    }
+    if (planeT.size() < w) {
       planeT.resize(w);
       planeIndex.resize(w);
     }
     for (std::size_t j = j0; j < j1; ++j) {
       const std::size_t src = g.bottom_up ? h - 1 - j : j;  // the G-buffer's row of image row j
-      const std::size_t r = fog ? (j - j0) * w : 0;          // the band's row of planes
-      if (!fog) kernels::castPlanesRow(frame, static_cast<int>(j), static_cast<int>(w), planeT.data(), planeIndex.data());
+      kernels::castPlanesRow(frame, static_cast<int>(j), static_cast<int>(w), planeT.data(), planeIndex.data());
       kernels::shadeRow(frame, static_cast<int>(j), static_cast<int>(w), mesh ? g.normal_rho_r + 4 * w * src : nullptr,
-                        mesh ? g.rho_gb + 2 * w * src : nullptr, mesh ? g.distance + w * src : nullptr, planeT.data() + r,
-                        planeIndex.data() + r, out.rgb.data() + 3 * w * j, out.distance.data() + w * j,
-                        fog ? rows.data() + (j - j0) * nq * stride : nullptr, stride);
+                        mesh ? g.rho_gb + 2 * w * src : nullptr, mesh ? g.distance + w * src : nullptr, planeT.data(),
+                        planeIndex.data(), out.rgb.data() + 3 * w * j, out.distance.data() + w * j);
     }
   };
   if (pool != nullptr && pool->size() > 1) pool->parallelFor(bands, band);

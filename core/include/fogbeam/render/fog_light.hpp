@@ -150,6 +150,17 @@ class FogLightTable {
 [[nodiscard]] double fogLightOrder1(const Phase& phase, double opticalDistance, double theta, double eta0,
                                     double eta1) noexcept;
 
+/// The azimuthal integrals of the clamped cosine for radiance arriving at θ from the lamp's
+/// direction a on an element whose normal n = μ a + √(1 − μ²) x̂: w0 = ∫ max(0, ω·n) dφ and
+/// w1 = ∫ cos φ max(0, ω·n) dφ / √(1 − μ²) (φ from x̂; the dipole's, header comment). With
+/// A = μ cos θ, B = √(1 − μ²) sin θ: where the element sees part of the ring about a, cos φ0 = −A/B,
+/// w0 = 2 (A φ0 + B sin φ0), w1 = (A sin φ0 + B φ0) / √(1 − μ²); all of it (A ≥ B): 2π A and π sin θ;
+/// none: 0. Exposed for tests (the model's integrals without its fits in μ).
+struct FogLightAzimuthal {
+  double w0 = 0.0, w1 = 0.0;
+};
+[[nodiscard]] FogLightAzimuthal fogLightAzimuthal(double theta, double mu) noexcept;
+
 /// Ī_k(w) and the harmonics Ī₁_k(w) of one profile over the lamp-frame directions: a grid of 0.5° / 3°
 /// in the angle from the lamp's +x axis (0 … 180°) and 3° in the azimuth about it (atan2(z, y)),
 /// bilinear between nodes.

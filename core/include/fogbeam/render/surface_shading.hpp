@@ -134,11 +134,12 @@ void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int
 /// `outDistance` [m]. `fogLight` (null: none): the fog's scattered light, the floats of
 /// fogLightCoefficients (lamp after lamp, fogLightFloats each) of pixel i at
 /// fogLight[(o_l + q) · fogStride + i], o_l the first float of lamp l's block, added to each
-/// lamp's direct illuminance; fogStride ≥ count + 64 (the last vector reads past the row).
+/// lamp's direct illuminance; fogStride ≥ count + 64 (the last vector reads past the row). `x0`:
+/// the image column of the first pixel (a part of the row; every pointer starts at it).
 /// SIMD, dispatched at run time; writes nothing beyond the row.
 void shadeRow(const ShadeFrame& frame, int j, int count, const float* normalRhoR, const float* rhoGB,
               const float* distance, const float* planeT, const std::int32_t* planeIndex, float* outRgb,
-              float* outDistance, const float* fogLight = nullptr, std::size_t fogStride = 0);
+              float* outDistance, const float* fogLight = nullptr, std::size_t fogStride = 0, int x0 = 0);
 
 }  // namespace kernels
 
