@@ -16,7 +16,6 @@
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/render/surface.hpp>
 
-#include <boost/math/quadrature/gauss.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -292,34 +291,6 @@ bool validatePathTracer(int samples, const std::string& csvPath) {
 /// irradiance E_d = I e^{−K_t R} cos i / R². Check: the path tracer's order 1 against fogbeam's
 /// single scattering (the accurate method per ray) along the same directions, within 3σ + 1 %.
 /// Prints one table; returns false when the check fails.
-namespace {
-// ∫ L cos dω over the upper hemisphere at `point` (lux), L the accurate method's single
-// scattering per ray: with u = sin² of the angle from +z, cos dω = ½ du dφ; 64-point Gauss–Legendre
-// in u (its nodes crowd towards u = 1, the horizon, where a lamp along the road sits) × 256
-// azimuths (periodic: the trapezoid rule).
-double hemisphereOrderOne(const AirlightEvaluator& ev, const Vec3& point, ThreadPool& pool) {
-  using GL = boost::math::quadrature::gauss<double, 64>;
-  constexpr std::size_t kPhi = 256;
-  std::vector<double> rows(GL::abscissa().size() * 2, 0.0);  // ± abscissae
-  pool.parallelFor(rows.size(), [&](std::size_t i) {
-    const std::size_t a = i / 2;
-    const double x = (i % 2 == 0 ? 1.0 : -1.0) * GL::abscissa()[a];
-    if (a == 0 && i % 2 == 1 && x == 0.0) return;  // an odd rule's centre counts once
-    const double u = 0.5 * (1.0 + x), sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
-    double sum = 0.0;
-    for (std::size_t j = 0; j < kPhi; ++j) {
-      const double phi = 2.0 * kPi * (static_cast<double>(j) + 0.5) / kPhi;
-      sum += ev.evaluate(Ray{point, Vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT),
-                             std::numeric_limits<double>::infinity()});
-    }
-    rows[i] = GL::weights()[a] * sum * (2.0 * kPi / kPhi);
-  });
-  double e = 0.0;
-  for (double r : rows) e += r;
-  return 0.5 * 0.5 * e;  // ½ du dφ, du = ½ dx
-}
-}  // namespace
-
 bool validateSurfaceScattering(int samples) {
   struct Case {
     std::string name;
@@ -421,7 +392,9 @@ bool validateSurfaceScattering(int samples) {
           // The model's order 1 against order 1 integrated over the sky hemisphere (the accurate
           // method per ray, no noise), and its orders ≥ 2 against the path tracer's in infinite fog.
           const double m1 = kt * kt * (*order1Table)->irradiance(kt * R, d.z / R, means.data(), dotN.data());
-          const double q1 = hemisphereOrderOne(*ev, Vec3(c.along_m[k], 0.0, 1e-3), *pool);
+          const Vec3 at(c.along_m[k], 0.0, 1e-3);
+          const double q1 = hemisphereIrradiance(
+              [&](const Vec3& w) { return ev->evaluate(Ray{at, w, std::numeric_limits<double>::infinity()}); }, *pool);
           const double m1ring = kt * kt * (*order1Table)->irradiance(kt * R, d.z / R, means.data());
           char b[64];
           std::snprintf(b, sizeof b, "%.3f (%.3f) / %.3f", m1 / q1, m1ring / q1, (m - m1) / (kPi * inf[k].multiple.mean));

@@ -14,7 +14,6 @@
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
-#include <boost/math/quadrature/gauss.hpp>
 #include <boost/math/quadrature/gauss_kronrod.hpp>
 #include "test_media.hpp"
 
@@ -192,23 +191,10 @@ TEST(FogLight, TheHarmonicCarriesTheSideOfTheAxisTheLightLeavesOn) {
     for (double x : {10.0, 20.0, 40.0}) {
       const Vec3 p(x, 0.0, 0.0), d = lamp.position_m - p;
       const double R = glm::length(d), kt = fog.extinction_per_m;
-      // ∫ L cos dω over the sky hemisphere: u = sin² from +z (cos dω = ½ du dφ), Gauss–Legendre in
-      // u (nodes crowding to the horizon, where the lamp is) × 256 azimuths.
-      using GL = boost::math::quadrature::gauss<double, 64>;
-      std::vector<double> rows(64, 0.0);
-      pool.parallelFor(64, [&](std::size_t i) {
-        const double xi = (i % 2 == 0 ? 1.0 : -1.0) * GL::abscissa()[i / 2];
-        const double u = 0.5 * (1.0 + xi), sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
-        double sum = 0.0;
-        for (int j = 0; j < 256; ++j) {
-          const double phi = 2.0 * kPi * (j + 0.5) / 256.0;
-          sum += ev.evaluate(Ray{p + Vec3(0, 0, 1e-3), Vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT),
-                                 std::numeric_limits<double>::infinity()});
-        }
-        rows[i] = GL::weights()[i / 2] * sum * (2.0 * kPi / 256.0);
-      });
-      double exact = 0.0;
-      for (double r : rows) exact += 0.25 * r;
+      // ∫ L cos dω over the sky hemisphere, the accurate method along each sky ray.
+      const double exact = hemisphereIrradiance(
+          [&](const Vec3& w) { return ev.evaluate(Ray{p + Vec3(0, 0, 1e-3), w, std::numeric_limits<double>::infinity()}); },
+          pool);
       const std::size_t bins = table->bins();
       std::vector<double> means(bins), dip(3 * bins), dotN(bins);
       const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);

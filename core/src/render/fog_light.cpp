@@ -50,8 +50,6 @@ double mapRow(double alpha) {  // fractional row of α
   return alpha < kMapFineEnd ? alpha / kMapFine : kMapFineRows + (alpha - kMapFineEnd) / kMapStep;
 }
 
-// Normals of the fit: μ_j = cos of the angle between the normal and the lamp's direction,
-// uniform in [−1, 1].
 // The fit's normals: μ = ±u², u uniform in [−1, 1] (81 nodes). Both the irradiance's kink and the
 // dipole's step at μ = 0 are as wide as the sine of the angle the light arrives at from the
 // lamp's direction (a few degrees for the first bins), so the nodes crowd there (0.0006, 0.0025,
@@ -149,6 +147,26 @@ void order1Bins(const Phase& phase, double T, double theta, const std::vector<do
 }
 
 }  // namespace
+
+double hemisphereIrradiance(const std::function<double(const Vec3&)>& radiance, ThreadPool& pool,
+                            std::size_t azimuths) {
+  using GL = boost::math::quadrature::gauss<double, 64>;
+  std::vector<double> rows(GL::abscissa().size() * 2, 0.0);  // ± abscissae (64 nodes, none at 0)
+  pool.parallelFor(rows.size(), [&](std::size_t i) {
+    const std::size_t a = i / 2;
+    const double x = (i % 2 == 0 ? 1.0 : -1.0) * GL::abscissa()[a];
+    const double u = 0.5 * (1.0 + x), sinT = std::sqrt(u), cosT = std::sqrt(1.0 - u);
+    double sum = 0.0;
+    for (std::size_t j = 0; j < azimuths; ++j) {
+      const double phi = 2.0 * kPi * (static_cast<double>(j) + 0.5) / static_cast<double>(azimuths);
+      sum += radiance(Vec3(sinT * std::cos(phi), sinT * std::sin(phi), cosT));
+    }
+    rows[i] = GL::weights()[a] * sum * (2.0 * kPi / static_cast<double>(azimuths));
+  });
+  double e = 0.0;
+  for (double r : rows) e += r;
+  return 0.25 * e;  // ½ du dφ, du = ½ dx
+}
 
 FogLightAzimuthal fogLightAzimuthal(double theta, double mu) noexcept {
   const double si = std::sqrt(std::max(0.0, 1.0 - mu * mu)), st = std::sin(theta), a = std::cos(theta) * mu, b = st * si;

@@ -270,7 +270,11 @@ class FogTile {
   FogTile(const kernels::ShadeFrame& frame, const SurfaceGBufferView& g, std::size_t stride, float floor,
           FogTileScratch& scratch)
       : f_(frame), g_(g), w_(g.width), h_(g.height), nq_(frame.fog_light.floats()), stride_(stride),
-        mfp_(1.0f / static_cast<float>(frame.fog_light.extinction)), floor_(floor), sc_(scratch) {}
+        mfp_(1.0f / static_cast<float>(frame.fog_light.extinction)), floor_(floor), sc_(scratch) {
+    // The symmetric functions facing the lamp (μ = 1) and edge-on (μ = 0), for predicts().
+    fogLightBasis(1.0f, b1_, static_cast<float*>(nullptr));
+    fogLightBasis(0.0f, b0_, static_cast<float*>(nullptr));
+  }
 
   // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom): their planes (for shadeRow) and distances;
   // then columns() gives their fog light, a part of the width at a time.
@@ -327,6 +331,7 @@ class FogTile {
   std::size_t nq_, stride_;
   float mfp_, floor_;
   FogTileScratch& sc_;
+  float b1_[4], b0_[4];  // fogLightBasis's symmetric functions at μ = 1 and μ = 0
   int j0_ = 0, yEnd_ = 0, x0_ = 0;
   float* rows_ = nullptr;
   [[nodiscard]] std::size_t nc() const { return nq_; }  // floats per node: every lamp's block
@@ -440,11 +445,10 @@ class FogTile {
     float wt[4];
     weights(k, xa, xb, ya, yb, x, y, wt);
     float miss1 = 0.0f, total1 = 0.0f, miss0 = 0.0f, total0 = 0.0f;
-    // The symmetric functions facing the lamp (μ = 1) and edge-on (μ = 0); edge-on the dipole is
-    // D0 · n (its other functions vanish at μ = 0), facing the lamp D · n = 0.
-    float b1[4], b0[4];
-    fogLightBasis(1.0f, b1, static_cast<float*>(nullptr));
-    fogLightBasis(0.0f, b0, static_cast<float*>(nullptr));
+    // The symmetric functions facing the lamp (μ = 1, b1_) and edge-on (μ = 0, b0_); edge-on the
+    // dipole is D0 · n (its other functions vanish at μ = 0), facing the lamp D · n = 0.
+    const float* b1 = b1_;
+    const float* b0 = b0_;
     std::size_t l = 0;
     for (const FogLightFrame::Lamp& lamp : f_.fog_light.lamps) {
       const std::size_t n = fogLightFloats(lamp);

@@ -58,6 +58,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -160,6 +161,16 @@ struct FogLightAzimuthal {
   double w0 = 0.0, w1 = 0.0;
 };
 [[nodiscard]] FogLightAzimuthal fogLightAzimuthal(double theta, double mu) noexcept;
+
+/// The irradiance of a horizontal element facing +z, E = ∫ L(ω) ω_z dω over the upper hemisphere,
+/// by deterministic quadrature: u = sin² of the angle from +z (cos dω = ½ du dφ), 64-point
+/// Gauss–Legendre in u (nodes crowding to the horizon, where a road sees the lamps along it) ×
+/// `azimuths` midpoints in φ. The reference the fog light's model is checked against (tests,
+/// `fogbeam validate --path-tracer`): `radiance(ω)` is e.g. the accurate method's airlight along the
+/// sky ray ω from the point (cd/m² in, lux out). Rows of u run on `pool`'s threads, so `radiance` must
+/// be callable concurrently; the sum is the same for any number of threads.
+[[nodiscard]] double hemisphereIrradiance(const std::function<double(const Vec3&)>& radiance, ThreadPool& pool,
+                                          std::size_t azimuths = 256);
 
 /// Ī_k(w) and the harmonics Ī₁_k(w) of one profile over the lamp-frame directions: a grid of 0.5° / 3°
 /// in the angle from the lamp's +x axis (0 … 180°) and 3° in the azimuth about it (atan2(z, y)),
