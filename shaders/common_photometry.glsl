@@ -153,11 +153,13 @@ float lampIntensity(LampGpu L, vec3 wWorld) {
 // ramps), d = (1, three smoothed steps) (fogLightBasis), μ = cos(incidence), s the lamp's
 // coefficients at optical distance T = K_t r: K_t² Σ_k Ī_k c_kq(T), and D_q = K_t² Σ_k Ī₁_k g_kq(T)
 // its dipoles (Ī_k, Ī₁_k the lamp's annulus means and first harmonics about its direction to the
-// point). uFogData (R32F): the dense table [row][bin][8] (c0 … c3, g0 … g3) from texel 0 (rows at T = 2^(−7 + i/16)
-// up to 1, then every 1/16 to 32), its sums of the first 4 over the bins [row][4] from uFogSums,
-// then the lamps' annulus maps (LampGpu.table.w; −1: an isotropic lamp, I₀ = params.x): rows of
-// the angle from the lamp's axis every 0.5° to 24°, then every 3°; uFogMapColumns azimuths every
-// 3°; uFogBins × 4 values each (the mean, the harmonic in the lamp frame). uFogBins = 0: off.
+// point). uFogData (RGBA32F, a texel = 4 floats): the dense table [row][bin][2 texels] (c0 … c3,
+// g0 … g3) from texel 0 (rows at T = 2^(−7 + i/16) up to 1, then every 1/16 to 32), its sums of
+// the c over the bins [row][1 texel] from texel uFogSums, then the lamps' annulus maps
+// (LampGpu.table.w, in texels; −1: an isotropic lamp, I₀ = params.x): rows of the angle from the
+// lamp's axis every 0.5° to 24°, then every 3°; uFogMapColumns azimuths every 3°; uFogBins texels
+// each (the mean, the harmonic in the lamp frame). uFogBins = 0: off. Whole texels: one fetch
+// where scalar R32F texels took four (the fog light's shading time, docs/surface_pass.md).
 layout(binding = 5) uniform samplerBuffer uFogData;
 uniform int uFogBins;
 uniform int uFogSums;
@@ -176,8 +178,7 @@ const float FOG_FINE_END = FOG_FINE_ROWS * FOG_FINE;
 const vec2 FOG_RAMP = vec2(0.01, 0.1);
 const vec3 FOG_STEP = vec3(0.3, 0.005, 0.04);
 
-float fogValue(int i) { return texelFetch(uFogData, i).r; }
-vec4 fogRow4(int i) { return vec4(fogValue(i), fogValue(i + 1), fogValue(i + 2), fogValue(i + 3)); }
+vec4 fogTexel(int i) { return texelFetch(uFogData, i); }
 
 // E_fog [lux] of lamp L at distance r [m] from the point, wWorld the unit direction from the lamp
 // to the point, mu the cosine of the incidence (any sign: the fog lights both sides), n the
@@ -192,7 +193,7 @@ float fogLight(LampGpu L, vec3 wWorld, float r, float mu, vec3 n) {
   vec4 dn = vec4(0.0);  // D_q · n, q = 0 … 3 (lamp frame, before the K_t² scale)
   int map = L.table.w;
   if (map < 0) {
-    s = L.params.x * mix(fogRow4(uFogSums + 4 * i0), fogRow4(uFogSums + 4 * (i0 + 1)), t);
+    s = L.params.x * mix(fogTexel(uFogSums + i0), fogTexel(uFogSums + i0 + 1), t);
   } else {
     vec3 w = vec3(dot(L.axisX.xyz, wWorld), dot(L.axisY.xyz, wWorld), dot(L.axisZ.xyz, wWorld));
     vec3 nl = vec3(dot(L.axisX.xyz, n), dot(L.axisY.xyz, n), dot(L.axisZ.xyz, n));
@@ -205,16 +206,16 @@ float fogLight(LampGpu L, vec3 wWorld, float r, float mu, vec3 n) {
     col = clamp(col, 0.0, float(uFogMapColumns - 1));
     int ia = min(int(row), uFogMapRows - 2), ib = min(int(col), uFogMapColumns - 2);
     float u = row - float(ia), v = col - float(ib);
-    int node = uFogBins * 4;
+    int node = uFogBins;  // texels per map node
     int p00 = map + (ia * uFogMapColumns + ib) * node;
     int p10 = p00 + uFogMapColumns * node;
-    int ra = i0 * uFogBins * 8, rb = ra + uFogBins * 8;
+    int ra = i0 * uFogBins * 2, rb = ra + uFogBins * 2;
     for (int k = 0; k < uFogBins; ++k) {
-      vec4 m = (1.0 - u) * ((1.0 - v) * fogRow4(p00 + 4 * k) + v * fogRow4(p00 + node + 4 * k)) +
-               u * ((1.0 - v) * fogRow4(p10 + 4 * k) + v * fogRow4(p10 + node + 4 * k));
+      vec4 m = (1.0 - u) * ((1.0 - v) * fogTexel(p00 + k) + v * fogTexel(p00 + node + k)) +
+               u * ((1.0 - v) * fogTexel(p10 + k) + v * fogTexel(p10 + node + k));
       vec3 h = m.yzw - dot(m.yzw, w) * w;  // perpendicular to w, as AnnulusMeanMap::lookup
-      s += m.x * mix(fogRow4(ra + 8 * k), fogRow4(rb + 8 * k), t);
-      dn += dot(h, nl) * mix(fogRow4(ra + 8 * k + 4), fogRow4(rb + 8 * k + 4), t);
+      s += m.x * mix(fogTexel(ra + 2 * k), fogTexel(rb + 2 * k), t);
+      dn += dot(h, nl) * mix(fogTexel(ra + 2 * k + 1), fogTexel(rb + 2 * k + 1), t);
     }
   }
   float scale = uExtinction * uExtinction * (T < FOG_T_FIRST ? FOG_T_FIRST / T : 1.0);

@@ -1,18 +1,17 @@
 #version 450 core
-// fogbeam — surface_plane.frag: infinite Lambertian planes by ray–plane intersection per pixel.
-// Units: metres, cd/m². The ray of pixel (i, j) goes through its centre, as Camera::rayDirection:
+// fogbeam — surface_plane.frag: infinite planes by ray–plane intersection per pixel, into the
+// geometry buffer. Units: metres. The ray of pixel (i, j) goes through its centre, as Camera::rayDirection:
 //   local = (f, cx − x, cy − y_down) = (f, cx − gl_FragCoord.x, gl_FragCoord.y − (H − cy))   (camera frame)
 // with (cx, cy) the principal point in image pixels (x right, y down; (W/2, H/2) when centred)
 // and y_down = H − gl_FragCoord.y.
 //   ω = normalize(worldFromCamera · local)
 // Plane n·(X − P₀) = 0 with c = n·(P₀ − O) (camera-relative): t = c / (n·ω), the nearest t > 0 wins.
 // The ray and t are computed in double precision so that the distance stays within ~1e-7
-// relative even at grazing incidence near the horizon. Outputs:
-//   location 0: L_s = L(S) e^{−K_t t} + I_a (1 − e^{−K_t t})  [cd/m², rgb; a = 1]
+// relative even at grazing incidence near the horizon. Outputs (nothing is lit here:
+// surface_deferred.frag or the CPU's SurfaceShader lights them, docs/surface_pass.md):
+//   location 0: the normal facing the eye, ρ red;  location 2: ρ green, blue
 //   location 1: t, the true distance along the ray [m]
-// With FOGBEAM_GBUFFER defined (shading on the CPU, docs/surface_pass.md) location 0 holds the
-// normal facing the eye and ρ red instead, location 2 ρ green and blue; nothing is lit here.
-// Pixels where no plane is hit are discarded (they keep the sky clear values: I_a and +inf).
+// Pixels where no plane is hit are discarded (they keep the sky clear values: +inf).
 #include "common_photometry.glsl"
 
 struct PlaneGpu {
@@ -25,11 +24,9 @@ uniform int uPlaneCount;
 uniform dmat3 uWorldFromCamera;  // columns: camera +x (view axis), +y (left), +z (up)
 uniform dvec3 uFocalPrincipal;   // (f, cx, H − cy) [px]: principal point in window coordinates (y up)
 
-layout(location = 0) out vec4 outLuminance;  // FOGBEAM_GBUFFER: (n, ρ red)
+layout(location = 0) out vec4 outNormalRho;  // (n, ρ red)
 layout(location = 1) out float outDistance;
-#ifdef FOGBEAM_GBUFFER
 layout(location = 2) out vec2 outRhoGB;       // ρ green, blue
-#endif
 
 void main() {
   dvec3 local = dvec3(uFocalPrincipal.x, uFocalPrincipal.y - double(gl_FragCoord.x), double(gl_FragCoord.y) - uFocalPrincipal.z);
@@ -50,16 +47,9 @@ void main() {
   vec3 dir = vec3(d);
   if (dot(n, dir) > 0.0) n = -n;  // the side facing the eye
   float t = float(best);
-#ifdef FOGBEAM_GBUFFER
-  // Deferred: the CPU lights the pixel (render/surface_shading.hpp) from its normal, ρ and t.
   float rho = float(planes[hit].reflectance.x);
-  outLuminance = vec4(n, rho);
+  outNormalRho = vec4(n, rho);
   outRhoGB = vec2(rho, rho);
-#else
-  vec3 p = vec3(best * d);
-  vec3 ls = surfaceLuminance(p, n, vec3(float(planes[hit].reflectance.x)));
-  outLuminance = vec4(viewedThroughFog(ls, t), 1.0);
-#endif
   outDistance = t;
   gl_FragDepth = depthFromDistance(t);
 }

@@ -293,6 +293,34 @@ json surfaceGlStage(SizeRun& run) {
           {"shading", run.gl->shading() == SurfaceShading::Cpu ? "cpu" : "gpu"}};
 }
 
+// The same pass with the fog's scattered light on the surfaces ([glow] surfaces): on a GPU the
+// fragment shaders evaluate it per pixel (common_photometry.glsl's fogLight), with CPU shading
+// the SIMD grid does. A first frame outside the timing builds the table and the profiles'
+// annulus maps. Its buffers are not kept: the stages below take the scene as it is.
+json surfaceGlFogLightStage(SizeRun& run) {
+  if (!run.gl) return {{"available", false}, {"note", "GL: not available (no EGL)"}};
+  Scene scene = run.scene;
+  scene.effects.glow.enabled = true;
+  scene.effects.glow.surfaces = true;
+  StageStats total, draw, readback, shade;
+  SurfaceBuffers buffers;
+  const auto tf = Clock::now();
+  if (Status st = run.gl->render(scene, buffers); !st)
+    return {{"available", false}, {"note", "GL failed: " + st.error().message}};
+  const double firstMs = msSince(tf);
+  for (int f = 0; f < run.o.frames; ++f) {
+    const auto t0 = Clock::now();
+    if (Status st = run.gl->render(scene, buffers); !st)
+      return {{"available", false}, {"note", "GL failed: " + st.error().message}};
+    total.ms.push_back(msSince(t0));
+    draw.ms.push_back(run.gl->stats().surface_ms);
+    readback.ms.push_back(run.gl->stats().readback_ms);
+    shade.ms.push_back(run.gl->stats().shade_ms);
+  }
+  return {{"available", true}, {"first_frame_ms", firstMs}, {"total", total.toJson()}, {"draw", draw.toJson()},
+          {"readback", readback.toJson()}, {"shade", shade.toJson()}};
+}
+
 // Airlight, accurate method, first frame at this size: it builds the view tables of the
 // vehicle-mounted lamps (their pose relative to the camera is fixed, so later frames reuse
 // them), so it is timed on its own and reported as the table build, not as a frame.
@@ -700,6 +728,7 @@ json benchSize(const Scene& original, int width, int height, const BenchOptions&
   stages["surface_cpu_planes"] = surfaceCpuStage(run);
   stages["surface_cpu_fast"] = surfaceCpuFastStage(run);
   stages["surface_cpu_fog_light"] = surfaceCpuFogLightStage(run);
+  stages["surface_gl_fog_light"] = surfaceGlFogLightStage(run);
   stages["surface_gl"] = surfaceGlStage(run);
   stages["airlight_first_frame"] = airlightFirstFrameStage(run);
   stages["airlight_subsampled"] = airlightSubsampledStage(run);
@@ -785,6 +814,15 @@ void printSize(const json& r) {
     printStage("  of which readback", s["surface_gl"]["readback"]);
     if (s["surface_gl"].value("shading", "") == "cpu")
       printStage("    of which CPU shading", s["surface_gl"]["shade"], "  (SIMD, the pass's geometry buffer)");
+    const json& fl = s["surface_gl_fog_light"];
+    if (fl.value("available", false)) {
+      char note[120];
+      std::snprintf(note, sizeof note, "  (first frame, its tables: %.0f ms)", fl["first_frame_ms"].get<double>());
+      printStage("surface GL + fog light: total", fl["total"], note);
+      printStage("  of which GPU draw", fl["draw"]);
+      if (s["surface_gl"].value("shading", "") == "cpu")
+        printStage("    of which CPU shading", fl["shade"]);
+    }
   } else {
     std::printf("  %-30s %s\n", "surface (GL)", s["surface_gl"]["note"].get<std::string>().c_str());
   }

@@ -63,16 +63,9 @@ Result<std::string> shaderSource(const std::string& name) {
 
 namespace {
 
-Result<Shader> compileShader(GLenum stage, const std::string& name, const std::string& defines) {
+Result<Shader> compileShader(GLenum stage, const std::string& name) {
   auto src = shaderSource(name);
   if (!src) return src.error();
-  if (!defines.empty()) {
-    // After the #version line, which must come first.
-    const std::size_t v = src->find("#version");
-    const std::size_t eol = v == std::string::npos ? std::string::npos : src->find('\n', v);
-    if (eol == std::string::npos) return Error{"shader " + name + ": no #version line to put the defines after"};
-    src->insert(eol + 1, defines);
-  }
   Shader sh(glCreateShader(stage));
   const char* text = src->c_str();
   glShaderSource(sh.get(), 1, &text, nullptr);
@@ -91,10 +84,10 @@ Result<Shader> compileShader(GLenum stage, const std::string& name, const std::s
 
 }  // namespace
 
-Result<Program> linkProgram(const std::string& vert, const std::string& frag, const std::string& defines) {
-  auto vs = compileShader(GL_VERTEX_SHADER, vert, defines);
+Result<Program> linkProgram(const std::string& vert, const std::string& frag) {
+  auto vs = compileShader(GL_VERTEX_SHADER, vert);
   if (!vs) return vs.error();
-  auto fs = compileShader(GL_FRAGMENT_SHADER, frag, defines);
+  auto fs = compileShader(GL_FRAGMENT_SHADER, frag);
   if (!fs) return fs.error();
   Program prog(glCreateProgram());
   glAttachShader(prog.get(), vs->get());

@@ -24,9 +24,7 @@ extern const std::size_t kEmbeddedShaderCount;
 [[nodiscard]] Result<std::string> shaderSource(const std::string& name);
 
 /// Compiles two shaders from the library and links them; errors carry the info log.
-/// `defines` (whole lines, e.g. "#define FOGBEAM_GBUFFER 1\n") go after each one's #version
-/// line. A GL context must be current; the program belongs to it.
-[[nodiscard]] Result<Program> linkProgram(const std::string& vert, const std::string& frag,
-                                          const std::string& defines = {});
+/// A GL context must be current; the program belongs to it.
+[[nodiscard]] Result<Program> linkProgram(const std::string& vert, const std::string& frag);
 
 }  // namespace fogbeam::gl

@@ -1,8 +1,9 @@
 // fogbeam — the GL surface pass (see fogbeam/gl/surface_pass.hpp and docs/surface_pass.md).
 //
-// Frame: clear (sky: L_s = I_a, distance +inf, depth 0) → planes (full-screen triangle,
-// surface_plane.frag) → glTF triangles (surface_mesh.*) with depth = 1/(1 + d) and GL_GREATER →
-// [GPU airlight stage (gpu_airlight_stage.hpp): a full-screen triangle into its own framebuffer
+// Frame: clear (sky: distance +inf, depth 0) → the geometry buffer: planes (full-screen triangle,
+// surface_plane.frag) → glTF triangles (surface_mesh.*) with depth = 1/(1 + d) and GL_GREATER, each
+// writing its normal, ρ and distance → with shading in GL, one full-screen lighting pass over it
+// (surface_deferred.frag: L_s per visible pixel, once) → [GPU airlight stage (gpu_airlight_stage.hpp): a full-screen triangle into its own framebuffer
 // that samples the distance attachment] → the readback ring (readback_ring.hpp): glReadPixels of
 // the attachments into one of two pixel-pack buffer slots + fence; collect() waits on the oldest.
 // Lamps and their tabulated profiles reach both draws through LampUpload (lamp_upload.hpp).
@@ -102,22 +103,25 @@ struct GlSurfacePass::Impl {
   std::string description;
   GlSurfaceStats stats;
   bool timerQuery = false;
-  // Deferred shading on the CPU (GlOptions::shading): the shaders write a geometry buffer
-  // (normal and ρ red in the colour attachment, ρ green and blue in rhoTex, the distance) and
-  // collect() lights it with `shader` on `shadePool`, from the lamps and camera of the frame's
-  // submit() (shadeFrames, in submission order like the readback ring's slots).
+  // The geometry draws write a geometry buffer (normal and ρ red in colorTex, ρ green and blue
+  // in rhoTex, the distance in distanceTex); it is lit once per pixel, never per fragment (the
+  // draws write gl_FragDepth, which turns early depth tests off: forward shading lit every hidden
+  // fragment too). With shading on the CPU (GlOptions::shading) collect() lights it with `shader`
+  // on `shadePool`, from the lamps and camera of the frame's submit() (shadeFrames, in submission
+  // order like the readback ring's slots); otherwise lightProgram does, into litTex.
   bool cpuShading = false;
   SurfaceShader shader;
   std::unique_ptr<ThreadPool> shadePool;
   std::deque<kernels::ShadeFrame> shadeFrames;
 
-  // The surface draws: programs and their uniform locations.
-  gl::Program planeProgram, meshProgram;
+  // The geometry draws and the lighting pass: programs and their uniform locations.
+  gl::Program planeProgram, meshProgram, lightProgram;
   GLint planeWorldFromCamera = -1, planeFocalPrincipal = -1, planePlaneCount = -1;
-  GLint planeExtinction = -1, planeAmbient = -1, planeLampCount = -1;
-  GLint meshAnchor = -1, meshClip = -1, meshExtinction = -1, meshAmbient = -1, meshLampCount = -1;
-  // The fog light's uniforms (common_photometry.glsl), per program: bins, sums, map rows, columns.
-  std::array<GLint, 4> planeFog{-1, -1, -1, -1}, meshFog{-1, -1, -1, -1};
+  GLint meshAnchor = -1, meshClip = -1;
+  GLint lightWorldFromCamera = -1, lightFocalPrincipal = -1, lightExtinction = -1, lightAmbient = -1,
+        lightLampCount = -1;
+  // The fog light's uniforms (common_photometry.glsl): bins, sums, map rows, columns.
+  std::array<GLint, 4> lightFog{-1, -1, -1, -1};
   // With shading in the shaders: the frame's fog light (SurfaceShader::prepareFogLight builds its
   // table and annulus maps; the shaders read them from LampUpload's fog texture).
   FogLightFrame gpuFog;
@@ -132,9 +136,11 @@ struct GlSurfacePass::Impl {
   Vec3 meshAnchor_m{0.0};
   std::optional<std::string> meshPath;  // the glTF file currently in meshVbo
 
-  // Render targets: colour L_s (RGBA32F), distance d (R32F), depth 1/(1 + d) (DEPTH32F).
-  gl::Framebuffer fbo = gl::genFramebuffer();
-  gl::Texture colorTex, distanceTex, rhoTex;
+  // Render targets: the geometry buffer (fbo: normal and ρ red RGBA32F, distance d R32F, ρ green
+  // and blue RG32F, depth 1/(1 + d) DEPTH32F); with shading in GL the lit colour L_s (litTex,
+  // RGBA32F, drawn through lightFbo) and readFbo (litTex and the distance) for the readback.
+  gl::Framebuffer fbo = gl::genFramebuffer(), lightFbo = gl::genFramebuffer(), readFbo = gl::genFramebuffer();
+  gl::Texture colorTex, distanceTex, rhoTex, litTex;
   gl::Renderbuffer depthRb;
   int fbWidth = 0, fbHeight = 0;
 
@@ -144,29 +150,30 @@ struct GlSurfacePass::Impl {
 
   // Links the surface programs and describes the mesh's vertex layout.
   Status init() {
-    const std::string defines = cpuShading ? "#define FOGBEAM_GBUFFER 1\n" : "";
-    auto plane = gl::linkProgram("surface_fullscreen.vert", "surface_plane.frag", defines);
+    auto plane = gl::linkProgram("surface_fullscreen.vert", "surface_plane.frag");
     if (!plane) return plane.error();
     planeProgram = std::move(plane).value();
-    auto mesh = gl::linkProgram("surface_mesh.vert", "surface_mesh.frag", defines);
+    auto mesh = gl::linkProgram("surface_mesh.vert", "surface_mesh.frag");
     if (!mesh) return mesh.error();
     meshProgram = std::move(mesh).value();
     const GLuint pp = planeProgram.get(), mp = meshProgram.get();
     planeWorldFromCamera = glGetUniformLocation(pp, "uWorldFromCamera");
     planeFocalPrincipal = glGetUniformLocation(pp, "uFocalPrincipal");
     planePlaneCount = glGetUniformLocation(pp, "uPlaneCount");
-    planeExtinction = glGetUniformLocation(pp, "uExtinction");
-    planeAmbient = glGetUniformLocation(pp, "uAmbient");
-    planeLampCount = glGetUniformLocation(pp, "uLampCount");
     meshAnchor = glGetUniformLocation(mp, "uAnchorFromCamera");
     meshClip = glGetUniformLocation(mp, "uClipFromCameraRel");
-    meshExtinction = glGetUniformLocation(mp, "uExtinction");
-    meshAmbient = glGetUniformLocation(mp, "uAmbient");
-    meshLampCount = glGetUniformLocation(mp, "uLampCount");
-    const char* fogNames[4] = {"uFogBins", "uFogSums", "uFogMapRows", "uFogMapColumns"};
-    for (std::size_t i = 0; i < 4; ++i) {
-      planeFog[i] = glGetUniformLocation(pp, fogNames[i]);
-      meshFog[i] = glGetUniformLocation(mp, fogNames[i]);
+    if (!cpuShading) {
+      auto light = gl::linkProgram("surface_fullscreen.vert", "surface_deferred.frag");
+      if (!light) return light.error();
+      lightProgram = std::move(light).value();
+      const GLuint lp = lightProgram.get();
+      lightWorldFromCamera = glGetUniformLocation(lp, "uWorldFromCamera");
+      lightFocalPrincipal = glGetUniformLocation(lp, "uFocalPrincipal");
+      lightExtinction = glGetUniformLocation(lp, "uExtinction");
+      lightAmbient = glGetUniformLocation(lp, "uAmbient");
+      lightLampCount = glGetUniformLocation(lp, "uLampCount");
+      const char* fogNames[4] = {"uFogBins", "uFogSums", "uFogMapRows", "uFogMapColumns"};
+      for (std::size_t i = 0; i < 4; ++i) lightFog[i] = glGetUniformLocation(lp, fogNames[i]);
     }
 
     // The glTF mesh and the body quads share the vertex layout (MeshVertex) and the program.
@@ -187,6 +194,16 @@ struct GlSurfacePass::Impl {
     return Ok{};
   }
 
+  // Whether the bound framebuffer is complete; `what` names it in the error.
+  static Status complete(const char* what) {
+    const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+    if (status == GL_FRAMEBUFFER_COMPLETE) return Ok{};
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "0x%04X", status);
+    return Error{std::string("framebuffer for ") + what + " incomplete: " +
+                 (status == GL_FRAMEBUFFER_UNSUPPORTED ? "GL_FRAMEBUFFER_UNSUPPORTED" : buf)};
+  }
+
   // The render targets at the frame's size (re-created when it changes).
   Status ensureFramebuffer(int w, int h) {
     if (w == fbWidth && h == fbHeight) return Ok{};
@@ -201,25 +218,30 @@ struct GlSurfacePass::Impl {
     distanceTex = gl::genTexture();
     glBindTexture(GL_TEXTURE_2D, distanceTex.get());
     glTexStorage2D(GL_TEXTURE_2D, 1, GL_R32F, w, h);
-    if (cpuShading) {
-      rhoTex = gl::genTexture();
-      glBindTexture(GL_TEXTURE_2D, rhoTex.get());
-      glTexStorage2D(GL_TEXTURE_2D, 1, GL_RG32F, w, h);
-    }
+    rhoTex = gl::genTexture();
+    glBindTexture(GL_TEXTURE_2D, rhoTex.get());
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RG32F, w, h);
     depthRb = gl::genRenderbuffer();
     glBindRenderbuffer(GL_RENDERBUFFER, depthRb.get());
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT32F, w, h);
     glBindFramebuffer(GL_FRAMEBUFFER, fbo.get());
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, colorTex.get(), 0);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, distanceTex.get(), 0);
-    if (cpuShading) glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT2, GL_TEXTURE_2D, rhoTex.get(), 0);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT2, GL_TEXTURE_2D, rhoTex.get(), 0);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depthRb.get());
-    const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
-    if (status != GL_FRAMEBUFFER_COMPLETE) {
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "0x%04X", status);
-      return Error{std::string("framebuffer (RGBA32F + R32F + DEPTH32F) incomplete: ") +
-                   (status == GL_FRAMEBUFFER_UNSUPPORTED ? "GL_FRAMEBUFFER_UNSUPPORTED" : buf)};
+    if (Status st = complete("the geometry buffer (RGBA32F + R32F + RG32F + DEPTH32F)"); !st) return st;
+    if (!cpuShading) {
+      litTex = gl::genTexture();
+      glBindTexture(GL_TEXTURE_2D, litTex.get());
+      glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, w, h);
+      glBindFramebuffer(GL_FRAMEBUFFER, lightFbo.get());
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, litTex.get(), 0);
+      if (Status st = complete("the lit colour (RGBA32F)"); !st) return st;
+      // Only read from (glReadPixels): the distance texture is attached here too, never drawn to.
+      glBindFramebuffer(GL_FRAMEBUFFER, readFbo.get());
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, litTex.get(), 0);
+      glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, distanceTex.get(), 0);
+      if (Status st = complete("the readback (RGBA32F + R32F)"); !st) return st;
     }
     fbWidth = w;
     fbHeight = h;
@@ -290,9 +312,10 @@ struct GlSurfacePass::Impl {
     glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_DYNAMIC_DRAW);
   }
 
-  // Clears the targets to the sky and draws the planes, the mesh and the body, bracketed by
-  // `timer` (GL_TIME_ELAPSED; 0: none); with `nothingToDraw` (the CPU lights a frame that has
-  // nothing for GL to draw) only the timer.
+  // Clears the geometry buffer to the sky and draws the planes, the mesh and the body into it,
+  // then with shading in GL lights it (lightPixels), all bracketed by `timer` (GL_TIME_ELAPSED;
+  // 0: none); with `nothingToDraw` (the CPU lights a frame that has nothing for GL to draw) only
+  // the timer.
   void drawSurfaces(const Scene& scene, GLuint timer, bool nothingToDraw) {
     if (nothingToDraw) {  // shading on the CPU, planes and body only: not even a clear is read
       if (timer != 0) {
@@ -304,41 +327,23 @@ struct GlSurfacePass::Impl {
     const Camera& cam = scene.camera;
     glBindFramebuffer(GL_FRAMEBUFFER, fbo.get());
     const GLenum drawBuffers[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
-    glDrawBuffers(cpuShading ? 3 : 2, drawBuffers);
+    glDrawBuffers(3, drawBuffers);
     glViewport(0, 0, cam.width, cam.height);
     glDisable(GL_CULL_FACE);
     glDisable(GL_BLEND);
     glEnable(GL_DEPTH_TEST);
     glDepthMask(GL_TRUE);
     glDepthFunc(GL_GREATER);
-    const auto ia = static_cast<float>(scene.fog.ambient_cd_m2);
-    const float skyColor[4] = {ia, ia, ia, 0.0f};
+    // The sky: no surface (distance +inf); whoever lights the buffer writes I_a there.
+    const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
     const float skyDistance[4] = {std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
     const float farDepth = 0.0f;
-    glClearBufferfv(GL_COLOR, 0, skyColor);
+    glClearBufferfv(GL_COLOR, 0, zero);
     glClearBufferfv(GL_COLOR, 1, skyDistance);
-    if (cpuShading) {  // sky: no surface; the CPU writes I_a where the distance is +inf
-      const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-      glClearBufferfv(GL_COLOR, 0, zero);
-      glClearBufferfv(GL_COLOR, 2, zero);
-    }
+    glClearBufferfv(GL_COLOR, 2, zero);
     glClearBufferfv(GL_DEPTH, 0, &farDepth);
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_BUFFER, lamps.profileTexture());
-    glActiveTexture(GL_TEXTURE5);
-    glBindTexture(GL_TEXTURE_BUFFER, lamps.fogTexture());
-    glActiveTexture(GL_TEXTURE0);
-    const int fogBins = cpuShading ? 0 : lamps.fogBins();  // with shading on the CPU it lights the fog light too
-    auto setFog = [&](const std::array<GLint, 4>& at) {
-      glUniform1i(at[0], fogBins);
-      glUniform1i(at[1], lamps.fogSums());
-      glUniform1i(at[2], lamps.fogMapRows());
-      glUniform1i(at[3], lamps.fogMapColumns());
-    };
 
     if (timer != 0) glBeginQuery(GL_TIME_ELAPSED, timer);
-    const auto kt = static_cast<float>(scene.fog.extinction_per_m);
-    const auto nLamps = static_cast<GLint>(scene.lamps.size());
     // With shading on the CPU the planes are cast there too (in double, SurfaceShader), so GL
     // draws them only for the GPU airlight stage, which reads their distances here.
     if (!scene.planes.empty() && (!cpuShading || airlight.enabled())) {
@@ -348,10 +353,6 @@ struct GlSurfacePass::Impl {
       const Vec2 principal = cam.principalPoint();
       glUniform3d(planeFocalPrincipal, cam.focalLengthPixels(), principal.x, cam.height - principal.y);
       glUniform1i(planePlaneCount, static_cast<GLint>(scene.planes.size()));
-      glUniform1f(planeExtinction, kt);
-      glUniform1f(planeAmbient, ia);
-      glUniform1i(planeLampCount, nLamps);
-      setFog(planeFog);
       glBindVertexArray(emptyVao.get());
       glDrawArrays(GL_TRIANGLES, 0, 3);
     }
@@ -361,10 +362,6 @@ struct GlSurfacePass::Impl {
       glUniform3fv(meshAnchor, 1, glm::value_ptr(anchor));
       const glm::mat4 clip = clipFromCameraRel(cam);
       glUniformMatrix4fv(meshClip, 1, GL_FALSE, glm::value_ptr(clip));
-      glUniform1f(meshExtinction, kt);
-      glUniform1f(meshAmbient, ia);
-      glUniform1i(meshLampCount, nLamps);
-      setFog(meshFog);
       glBindVertexArray(meshVao.get());
       glDrawArrays(GL_TRIANGLES, 0, meshVertexCount);
     }
@@ -372,18 +369,55 @@ struct GlSurfacePass::Impl {
     // planes, and drawn here only for the GPU airlight stage's distances.
     if (bodyVertexCount > 0 && (!cpuShading || airlight.enabled())) {
       glUseProgram(meshProgram.get());
-      const glm::vec3 zero(0.0f);
-      glUniform3fv(meshAnchor, 1, glm::value_ptr(zero));
+      const glm::vec3 zero3(0.0f);
+      glUniform3fv(meshAnchor, 1, glm::value_ptr(zero3));
       glUniformMatrix4fv(meshClip, 1, GL_FALSE, glm::value_ptr(clipFromCameraRel(cam)));
-      glUniform1f(meshExtinction, kt);
-      glUniform1f(meshAmbient, ia);
-      glUniform1i(meshLampCount, nLamps);
-      setFog(meshFog);
       glBindVertexArray(bodyVao.get());
       glDrawArrays(GL_TRIANGLES, 0, bodyVertexCount);
     }
+    if (!cpuShading) lightPixels(scene);
     if (timer != 0) glEndQuery(GL_TIME_ELAPSED);
     glBindVertexArray(0);
+  }
+
+  // Shading in GL: every pixel of the geometry buffer lit once (surface_deferred.frag: the lamps'
+  // direct light and fog light, the fog between the eye and the surface, I_a on the sky) into
+  // litTex, which the readback reads with the distance (readFbo).
+  void lightPixels(const Scene& scene) {
+    const Camera& cam = scene.camera;
+    glBindFramebuffer(GL_FRAMEBUFFER, lightFbo.get());
+    const GLenum drawBuffer = GL_COLOR_ATTACHMENT0;
+    glDrawBuffers(1, &drawBuffer);
+    glDisable(GL_DEPTH_TEST);
+    glDepthMask(GL_FALSE);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_BUFFER, lamps.profileTexture());
+    glActiveTexture(GL_TEXTURE5);
+    glBindTexture(GL_TEXTURE_BUFFER, lamps.fogTexture());
+    const std::pair<GLenum, GLuint> gbuffer[] = {
+        {GL_TEXTURE1, colorTex.get()}, {GL_TEXTURE2, distanceTex.get()}, {GL_TEXTURE3, rhoTex.get()}};
+    for (const auto& [unit, tex] : gbuffer) {
+      glActiveTexture(unit);
+      glBindTexture(GL_TEXTURE_2D, tex);
+    }
+    glActiveTexture(GL_TEXTURE0);
+    glUseProgram(lightProgram.get());
+    const glm::mat3 worldFromCamera(cam.worldFromCamera);
+    glUniformMatrix3fv(lightWorldFromCamera, 1, GL_FALSE, glm::value_ptr(worldFromCamera));
+    const Vec2 principal = cam.principalPoint();
+    glUniform3f(lightFocalPrincipal, static_cast<float>(cam.focalLengthPixels()), static_cast<float>(principal.x),
+                static_cast<float>(cam.height - principal.y));
+    glUniform1f(lightExtinction, static_cast<float>(scene.fog.extinction_per_m));
+    glUniform1f(lightAmbient, static_cast<float>(scene.fog.ambient_cd_m2));
+    glUniform1i(lightLampCount, static_cast<GLint>(scene.lamps.size()));
+    glUniform1i(lightFog[0], lamps.fogBins());
+    glUniform1i(lightFog[1], lamps.fogSums());
+    glUniform1i(lightFog[2], lamps.fogMapRows());
+    glUniform1i(lightFog[3], lamps.fogMapColumns());
+    glBindVertexArray(emptyVao.get());
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glEnable(GL_DEPTH_TEST);
+    glDepthMask(GL_TRUE);
   }
 
   Status submit(const Scene& scene) {
@@ -415,7 +449,7 @@ struct GlSurfacePass::Impl {
     if (airlight.enabled())
       airlight.draw(scene, {lamps.profileTexture(), distanceTex.get(), emptyVao.get(), timers.airlight});
     if (cpuShading) shader.prepare(scene, shadeFrames.emplace_back(), shadePool.get());  // in step with the ring's slots
-    readback.endFrame({fbo.get(), cpuShading, nothingDrawn, airlight.enabled() ? airlight.framebuffer() : 0u,
+    readback.endFrame({cpuShading ? fbo.get() : readFbo.get(), cpuShading, nothingDrawn, airlight.enabled() ? airlight.framebuffer() : 0u,
                        cam.width, cam.height, static_cast<std::size_t>(meshVertexCount) / 3});
     if (std::string e = gl::glErrors("surface pass draw/readback"); !e.empty()) return Error{e};
     readback.setSubmitMs(msSince(t0));

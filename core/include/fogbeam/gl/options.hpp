@@ -11,11 +11,13 @@ enum class GlPlatform {
   Device,       ///< EGL_EXT_platform_device with EGL_EXT_device_enumeration, device `device_index`
 };
 
-/// Where the surface pass lights its pixels (docs/surface_pass.md, "Shading on the CPU").
+/// Where the surface pass lights its pixels (docs/surface_pass.md, "Shading in GL" and "Shading
+/// on the CPU"). Either way the draws write a geometry buffer (normal, ρ, distance) and each
+/// visible pixel is lit once.
 enum class SurfaceShading {
   Auto,  ///< Cpu on a software rasteriser (llvmpipe, softpipe, swrast), else Gpu
-  Gpu,   ///< the fragment shaders light every pixel (forward shading)
-  Cpu,   ///< the shaders write a geometry buffer (normal, ρ, distance); SIMD threads light it
+  Gpu,   ///< a full-screen fragment shader lights the geometry buffer (surface_deferred.frag)
+  Cpu,   ///< SIMD threads light the geometry buffer after its readback (SurfaceShader)
 };
 
 struct GlOptions {
