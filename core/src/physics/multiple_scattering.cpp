@@ -70,19 +70,32 @@ struct SegmentIntegral {
   // e the direction from the lamp to the eye. The range [θ0, π/2] is cut where cos η crosses a
   // bin edge (θ = φ0 ± acos(c/A)) and each piece goes to its bin. `cosEdges` descending (η
   // ascending), bins = cosEdges.size() − 1; `out` gets += per bin; returns the total.
+  //
+  // `outH` (if not null) gets += per bin the same light weighted by cos Δφ, the cosine of the
+  // azimuth of u about e from that of d, a unit vector ⊥ e (the camera ray's side of the
+  // lamp–eye line): cos Δφ = u · d / √(1 − (u · e)²) = (nd cos θ + wd sin θ) / sin η, taken at each
+  // piece's G-weighted mean angle θ̄ = ∫ θ G / ∫ G (the cumulative moments T_1 / T_0), where its
+  // linear variation integrates to nothing. The first azimuthal harmonic of the emission
+  // (MultipleScatteringTable::emissionHarmonics).
   double binned(double p, double h, double theta0, double ne, double we, const std::vector<double>& cosEdges,
-                double* out) const noexcept {
+                double* out, double nd = 0.0, double wd = 0.0, double* outH = nullptr) const noexcept {
     const std::size_t bins = cosEdges.size() - 1;
     auto binOf = [&](double c) {
       std::size_t k = 0;
       while (k + 1 < bins && c < cosEdges[k + 1]) ++k;
       return k;
     };
+    auto cosAzimuth = [&](double th) {
+      const double c = ne * std::cos(th) + we * std::sin(th), sinEta = std::sqrt(std::max(0.0, 1.0 - c * c));
+      return sinEta > 1e-9 ? std::clamp((nd * std::cos(th) + wd * std::sin(th)) / sinEta, -1.0, 1.0) : 0.0;
+    };
     if (theta0 > kHalfPi - detail::kAwayConeRad) {
       // Backscatter within 1° of straight away: the whole (short, smooth) range to the bin of its middle.
       const double v = (*this)(p, h, theta0);
       const double mid = 0.5 * (theta0 + kHalfPi);
-      out[binOf(ne * std::cos(mid) + we * std::sin(mid))] += v;
+      const std::size_t k = binOf(ne * std::cos(mid) + we * std::sin(mid));
+      out[k] += v;
+      if (outH != nullptr) outH[k] += v * cosAzimuth(mid);
       return v;
     }
     std::array<double, 40> cuts{};
@@ -102,14 +115,22 @@ struct SegmentIntegral {
     cuts[m++] = kHalfPi;
     const auto kw = g.kWeights(h);
     const double scale = std::exp(-p) / h;
-    double prev = g.cumulative(kw, theta0)[0], total = 0.0;
+    const auto first = g.cumulative(kw, theta0);
+    double prev = first[0], prev1 = first[1], total = 0.0;
     for (std::size_t i = 1; i < m; ++i) {
-      const double cur = g.cumulative(kw, cuts[i])[0];
-      const double v = scale * std::max(cur - prev, 0.0);
+      const auto curAll = g.cumulative(kw, cuts[i]);
+      const double cur = curAll[0], d0 = cur - prev, d1 = curAll[1] - prev1;
+      const double v = scale * std::max(d0, 0.0);
       prev = cur;
+      prev1 = curAll[1];
       if (!(v > 0.0)) continue;
       const double mid = 0.5 * (cuts[i - 1] + cuts[i]);
-      out[binOf(ne * std::cos(mid) + we * std::sin(mid))] += v;
+      const std::size_t k = binOf(ne * std::cos(mid) + we * std::sin(mid));
+      out[k] += v;
+      if (outH != nullptr) {
+        const double mean = d0 > 0.0 ? std::clamp(d1 / d0, cuts[i - 1], cuts[i]) : mid;
+        outH[k] += v * cosAzimuth(mean);
+      }
       total += v;
     }
     return total;
@@ -228,18 +249,28 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
   }
   std::vector<Vec3> toEye(nL);
   for (std::size_t l = 0; l < nL; ++l) toEye[l] = -glm::normalize(lamps[l]);
+  // The camera ray's side of each lamp–eye line: the unit part of +z perpendicular to it (the
+  // lamp at T (sin θ, 0, cos θ): (−cos θ, 0, sin θ)), the reference of the emission's azimuth.
+  std::vector<Vec3> side(nL);
+  for (std::size_t l = 0; l < nL; ++l) {
+    const double th = t.theta_[l % nTh];
+    side[l] = Vec3(-std::cos(th), 0.0, std::sin(th));
+  }
 
   const std::uint64_t batches = (o.paths + o.batch_size - 1) / o.batch_size;
   // Per batch: Σ x and Σ x² per (albedo, lamp), and the events.
   std::vector<double> sums(batches * nA * nL * 2, 0.0);
   std::vector<double> binSums(batches * nL * std::max<std::size_t>(nK, 1), 0.0);
+  std::vector<double> harmSums(batches * nL * std::max<std::size_t>(nK, 1), 0.0);  // the same × cos Δφ
   std::vector<std::uint64_t> events(batches, 0);
   auto runBatch = [&](std::size_t b) {
     double* sum = sums.data() + b * nA * nL * 2;
     double* sq = sum + nA * nL;
     std::vector<double> acc(nA * nL);
     double* binAcc = binSums.data() + b * nL * std::max<std::size_t>(nK, 1);
+    double* harmAcc = harmSums.data() + b * nL * std::max<std::size_t>(nK, 1);
     std::vector<double> segBins(std::max<std::size_t>(nK, 1)), tmpBins(std::max<std::size_t>(nK, 1));
+    std::vector<double> segHarm(std::max<std::size_t>(nK, 1)), tmpHarm(std::max<std::size_t>(nK, 1));
     std::vector<double> wA(nA);
     const std::uint64_t first = b * o.batch_size, last = std::min<std::uint64_t>(o.paths, first + o.batch_size);
     for (std::uint64_t s = first; s < last; ++s) {
@@ -274,7 +305,9 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
             const double D = std::sqrt(d2);
             double val = 0.0;
             const Vec3& e = toEye[l];
+            const Vec3& dp = side[l];
             std::fill(segBins.begin(), segBins.end(), 0.0);
+            std::fill(segHarm.begin(), segHarm.end(), 0.0);
             {  // the phase-sampled direction
               const double p = glm::dot(v, w);
               const double h = std::sqrt(std::max(d2 - p * p, 1e-18));
@@ -287,8 +320,13 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
                 // n: from the lamp to the ray's foot point x + p ω.
                 const Vec3 foot = (x + p * w - lamps[l]) / h;
                 tmpBins.assign(nK, 0.0);
-                val += mis * segment.binned(p, h, std::atan2(-p, h), glm::dot(foot, e), glm::dot(w, e), cosEdges, tmpBins.data());
-                for (std::size_t k = 0; k < nK; ++k) segBins[k] += mis * tmpBins[k];
+                tmpHarm.assign(nK, 0.0);
+                val += mis * segment.binned(p, h, std::atan2(-p, h), glm::dot(foot, e), glm::dot(w, e), cosEdges,
+                                            tmpBins.data(), glm::dot(foot, dp), glm::dot(w, dp), tmpHarm.data());
+                for (std::size_t k = 0; k < nK; ++k) {
+                  segBins[k] += mis * tmpBins[k];
+                  segHarm[k] += mis * tmpHarm[k];
+                }
               }
             }
             {  // the guided direction: only its angles matter. The segment's lamp integral depends
@@ -325,14 +363,32 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
                   }
                 }
                 const double ne = -spsi * ue + cpsi * ve, we = cpsi * ue + spsi * ve;
+                // The same for the side vector: v = cos φ â + sin φ (u × â), â the unit part of ω_in
+                // ⊥ u (else of e, else any), as ve above.
+                Vec3 a0 = inPerpLen > 1e-12 ? inPerp / inPerpLen : (ePerpLen > 1e-12 ? ePerp / ePerpLen : Vec3(0.0));
+                if (!(inPerpLen > 1e-12) && !(ePerpLen > 1e-12)) {
+                  const Vec3 any = std::abs(u.x) < 0.9 ? Vec3(1.0, 0.0, 0.0) : Vec3(0.0, 1.0, 0.0);
+                  a0 = glm::normalize(any - glm::dot(any, u) * u);
+                }
+                const double ud = glm::dot(u, dp);
+                const double vd = std::cos(phi) * glm::dot(a0, dp) + std::sin(phi) * glm::dot(glm::cross(u, a0), dp);
+                const double nd = -spsi * ud + cpsi * vd, wd = cpsi * ud + spsi * vd;
                 tmpBins.assign(nK, 0.0);
-                val += mis * segment.binned(D * cpsi, D * spsi, psi - kHalfPi, ne, we, cosEdges, tmpBins.data());
-                for (std::size_t k = 0; k < nK; ++k) segBins[k] += mis * tmpBins[k];
+                tmpHarm.assign(nK, 0.0);
+                val += mis * segment.binned(D * cpsi, D * spsi, psi - kHalfPi, ne, we, cosEdges, tmpBins.data(), nd, wd,
+                                            tmpHarm.data());
+                for (std::size_t k = 0; k < nK; ++k) {
+                  segBins[k] += mis * tmpBins[k];
+                  segHarm[k] += mis * tmpHarm[k];
+                }
               }
             }
             if (!(val > 0.0)) continue;
             for (std::size_t a = 0; a < nA; ++a) acc[a * nL + l] += wA[a] * val;
-            for (std::size_t k = 0; k < nK; ++k) binAcc[l * nK + k] += wA[nA - 1] * segBins[k];
+            for (std::size_t k = 0; k < nK; ++k) {
+              binAcc[l * nK + k] += wA[nA - 1] * segBins[k];
+              harmAcc[l * nK + k] += wA[nA - 1] * segHarm[k];
+            }
           }
           // Russian roulette on the importance 1/(1 + ρ), ρ the vertex's distance beyond the
           // farthest lamp (a weight window: below half of the target weight 1 + ρ a path survives
@@ -379,15 +435,22 @@ Result<MultipleScatteringTable> MultipleScatteringTable::build(const Phase& phas
   }
   t.meanEvents_ = static_cast<double>(allEvents) / N;
   // Emission fractions per (T, θ) node at the largest albedo: each bin's share of the node's light.
+  // The harmonics over the same total (MultipleScatteringTable::emissionHarmonics).
   if (nK > 0) {
     t.fractions_.assign(nL * nK, 0.0);
+    t.harmonics_.assign(nL * nK, 0.0);
     for (std::uint64_t b = 0; b < batches; ++b)
-      for (std::size_t k = 0; k < nL * nK; ++k) t.fractions_[k] += binSums[b * nL * nK + k];
+      for (std::size_t k = 0; k < nL * nK; ++k) {
+        t.fractions_[k] += binSums[b * nL * nK + k];
+        t.harmonics_[k] += harmSums[b * nL * nK + k];
+      }
     for (std::size_t l = 0; l < nL; ++l) {
       double sum = 0.0;
       for (std::size_t k = 0; k < nK; ++k) sum += t.fractions_[l * nK + k];
-      for (std::size_t k = 0; k < nK; ++k)
+      for (std::size_t k = 0; k < nK; ++k) {
         t.fractions_[l * nK + k] = sum > 0.0 ? t.fractions_[l * nK + k] / sum : 1.0 / static_cast<double>(nK);
+        t.harmonics_[l * nK + k] = sum > 0.0 ? t.harmonics_[l * nK + k] / sum : 0.0;
+      }
     }
   }
   for (double v : t.t_) t.logT_.push_back(std::log(v));
@@ -437,6 +500,19 @@ void MultipleScatteringTable::emissionShares(double opticalDistance, double thet
   for (std::size_t k = 0; k < nK; ++k) out[k] = sum > 0.0 ? out[k] / sum : 1.0 / static_cast<double>(nK);
 }
 
+void MultipleScatteringTable::emissionHarmonics(double opticalDistance, double theta, double* out) const noexcept {
+  if (harmonics_.empty()) return;
+  const std::size_t nK = edges_.size() - 1;
+  const double lt = std::log(std::max(opticalDistance, t_.front())), lth = std::log(std::max(theta, theta_.front()));
+  const auto [i, fi] = locate(logT_, lt);
+  const auto [j, fj] = locate(logTheta_, lth);
+  const std::size_t i1 = std::min(i + 1, t_.size() - 1), j1 = std::min(j + 1, theta_.size() - 1);
+  const std::size_t nTh = theta_.size();
+  for (std::size_t k = 0; k < nK; ++k)
+    out[k] = (1 - fi) * ((1 - fj) * harmonics_[(i * nTh + j) * nK + k] + fj * harmonics_[(i * nTh + j1) * nK + k]) +
+             fi * ((1 - fj) * harmonics_[(i1 * nTh + j) * nK + k] + fj * harmonics_[(i1 * nTh + j1) * nK + k]);
+}
+
 double MultipleScatteringTable::value(double opticalDistance, double theta, double albedo) const noexcept {
   if (!(opticalDistance > 0.0) || mean_.empty()) return 0.0;
   const auto [a, fa] = locate(albedo_, albedo);
@@ -455,7 +531,10 @@ double MultipleScatteringTable::value(double opticalDistance, double theta, doub
 // optical_distances <n> v…
 // angles_deg <n> v…
 // albedos <n> v…
-// then n_albedo × n_T × n_θ lines "mean stderr" in (albedo, T, θ) order.
+// emission_edges_deg <n> v…          (n = 0: no emission bins)
+// then n_albedo × n_T × n_θ lines "mean stderr" in (albedo, T, θ) order; with bins the line
+// "emission_shares" and n_T × n_θ lines of one share per bin, then (optional) the line
+// "emission_harmonics" and n_T × n_θ lines of one harmonic per bin.
 
 Status MultipleScatteringTable::save(const std::filesystem::path& path) const {
   std::ofstream f(path);
@@ -486,6 +565,13 @@ Status MultipleScatteringTable::save(const std::filesystem::path& path) const {
     for (std::size_t l = 0; l < fractions_.size() / nK; ++l) {
       for (std::size_t k = 0; k < nK; ++k) f << (k ? " " : "") << fractions_[l * nK + k];
       f << "\n";
+    }
+    if (!harmonics_.empty()) {
+      f << "emission_harmonics\n";
+      for (std::size_t l = 0; l < harmonics_.size() / nK; ++l) {
+        for (std::size_t k = 0; k < nK; ++k) f << (k ? " " : "") << harmonics_[l * nK + k];
+        f << "\n";
+      }
     }
   }
   if (!f) return Error{"error writing " + path.string()};
@@ -600,6 +686,32 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
         if (!(ls >> t.fractions_[l * nK + k]) || !(t.fractions_[l * nK + k] >= 0.0 && t.fractions_[l * nK + k] <= 1.0 + 1e-9))
           return fail("expected " + std::to_string(nK) + " emission shares in [0, 1]");
     }
+    // Optional (tables from before 2026-11-27 have none): the emission's first azimuthal harmonic,
+    // each |value| at most its share (a mean of the share's light times a cosine).
+    while (std::getline(f, line)) {
+      ++lineNo;
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      if (line != "emission_harmonics") return fail("expected 'emission_harmonics' or the end of the table");
+      t.harmonics_.resize(nL * nK);
+      for (std::size_t l = 0; l < nL; ++l) {
+        if (!std::getline(f, line)) {
+          ++lineNo;
+          return fail("expected " + std::to_string(nL) + " emission harmonic lines, found " + std::to_string(l));
+        }
+        ++lineNo;
+        std::istringstream ls(line);
+        for (std::size_t k = 0; k < nK; ++k) {
+          double& h = t.harmonics_[l * nK + k];
+          if (!(ls >> h) || !std::isfinite(h) || std::abs(h) > t.fractions_[l * nK + k] + 1e-5)
+            return fail("expected " + std::to_string(nK) + " emission harmonics, each within ± its share");
+        }
+      }
+      break;
+    }
+    while (std::getline(f, line)) {
+      ++lineNo;
+      if (line.find_first_not_of(" \t\r") != std::string::npos) return fail("unexpected text after the table");
+    }
   }
   for (double v : t.t_) t.logT_.push_back(std::log(v));
   for (double v : t.theta_) t.logTheta_.push_back(std::log(v));
@@ -624,8 +736,15 @@ Result<MultipleScatteringTable> MultipleScatteringTable::blend(const MultipleSca
   if (a.fractions_.size() == b.fractions_.size() && a.edges_ == b.edges_) {
     for (std::size_t k = 0; k < t.fractions_.size(); ++k)
       t.fractions_[k] = (1.0 - w) * a.fractions_[k] + w * b.fractions_[k];
+    if (a.harmonics_.size() == b.harmonics_.size()) {
+      for (std::size_t k = 0; k < t.harmonics_.size(); ++k)
+        t.harmonics_[k] = (1.0 - w) * a.harmonics_[k] + w * b.harmonics_[k];
+    } else {
+      t.harmonics_.clear();  // one of them has none: the blend has none
+    }
   } else {
     t.fractions_.clear();  // one of them has no bins: the blend has none
+    t.harmonics_.clear();
     t.edges_.clear();
   }
   t.paths_ = std::min(a.paths_, b.paths_);

@@ -231,15 +231,21 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
     }
   auto node = [&](std::size_t iT) {
     const double T = t->t_[iT];
-    // L_k(θ_i) (K_t = 1 /m, 1 cd): Ω l¹_k + f share_k; L1 the order-1 part alone (the dipole's).
+    // L_k(θ_i) (K_t = 1 /m, 1 cd): Ω l¹_k + f share_k; L1 the dipole's radiance per unit Ī₁_k · ω̂⊥:
+    // Ω l¹_k (order 1 leaves towards the scatterer's side) + f h_k (orders ≥ 2: the tables' first
+    // azimuthal harmonic of the emission, MultipleScatteringTable::emissionHarmonics; 0 for tables
+    // without it, the ring means alone).
     std::vector<double> L(kThetaNodes * bins, 0.0), L1(kThetaNodes * bins, 0.0), shares(bins, 1.0), o1(bins);
+    std::vector<double> harmonics(bins, 0.0);
+    const bool withHarmonics = ms != nullptr && ms->hasEmissionBins() && ms->hasEmissionHarmonics();
     for (std::size_t i = 1; i < kThetaNodes; ++i) {
       order1Bins(phase, T, theta[i], t->edges_, o1.data());
       const double f = ms != nullptr ? ms->value(T, theta[i], albedo) : 0.0;
       if (ms != nullptr && ms->hasEmissionBins()) ms->emissionShares(T, theta[i], shares.data());
+      if (withHarmonics) ms->emissionHarmonics(T, theta[i], harmonics.data());
       for (std::size_t k = 0; k < bins; ++k) {
-        L1[i * bins + k] = albedo * o1[k];
-        L[i * bins + k] = L1[i * bins + k] + f * shares[k];
+        L1[i * bins + k] = albedo * o1[k] + f * harmonics[k];
+        L[i * bins + k] = albedo * o1[k] + f * shares[k];
       }
     }
     // E_k(μ_j) = Σ_i L_k(θ_i) wE[j][i] and G_k(μ_j) = Σ_i L¹_k(θ_i) wG[j][i] (the weights below),

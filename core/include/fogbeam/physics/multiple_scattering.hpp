@@ -109,6 +109,20 @@ class MultipleScatteringTable {
   /// are those of the largest albedo node (for Ω < 1 the low orders, emitted closer to the eye's
   /// direction, weigh a little more). No-op without bins.
   void emissionShares(double opticalDistance, double theta, double* out) const noexcept;
+  /// Whether the table holds the emission's first azimuthal harmonic (tables built since
+  /// 2026-11-27; older files have none).
+  [[nodiscard]] bool hasEmissionHarmonics() const noexcept { return !harmonics_.empty(); }
+  /// The first azimuthal harmonic of where the light of each bin left the lamp, as a share of all
+  /// the light of orders ≥ 2 at (T, θ): h_k = ⟨share of bin k × cos Δφ⟩, Δφ the azimuth about
+  /// the lamp–eye line of the direction the light left the lamp in, from the azimuth of the eye's
+  /// ray (the side of the line the ray's scatterers lie on). |h_k| ≤ share_k; 0 for light that
+  /// forgot which side it left on, share_k for order 1 (which leaves towards the ray). For a
+  /// lamp whose intensity on annulus k is Ī_k + Ī₁_k · ê (ê the unit azimuth vector about the
+  /// lamp's direction to the eye, Ī₁_k = 2 ⟨I ê⟩ over the annulus),
+  ///     L_ms = K_t² f(T, θ, Ω) Σ_k (share_k Ī_k + h_k Ī₁_k · ω̂⊥),
+  /// ω̂⊥ the unit part of the eye's ray ⊥ to the line. Bilinear in log T, log θ between nodes,
+  /// clamped at the ends; at the largest albedo node, as the shares. No-op without harmonics.
+  void emissionHarmonics(double opticalDistance, double theta, double* out) const noexcept;
   /// L_ms in cd/m² for a lamp of `intensity_cd` at `distance_m` in fog of extinction `kt` (1/m).
   [[nodiscard]] double radiance(double intensity_cd, double kt, double distance_m, double theta,
                                 double albedo) const noexcept {
@@ -141,6 +155,7 @@ class MultipleScatteringTable {
   std::vector<double> logT_, logTheta_;
   std::vector<double> edges_;      // emission bin edges, radians
   std::vector<double> fractions_;  // (T, θ, bin) shares at the largest albedo
+  std::vector<double> harmonics_;  // (T, θ, bin) first azimuthal harmonics, same albedo (may be empty)
   std::uint64_t paths_ = 0;
   std::uint64_t seed_ = 0;
   int maxOrder_ = 0;

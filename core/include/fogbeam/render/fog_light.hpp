@@ -32,9 +32,11 @@
 // from it is (Ī₁_k · n) G_k(μ) with
 //   G_k(μ) = ∫ l¹_k(θ) W₁(θ, μ) sin θ dθ / √(1 − μ²),  W₁ = ∫ cos φ max(0, ω·n) dφ,
 // fitted as Σ_q g_kq d_q(μ), d = (1, and smoothed steps μ/√(μ² + σ²), σ = 0.3, 0.005, 0.04: G_k is a
-// step at μ = 0 as wide as the sine of the angle its light arrives at). Orders ≥ 2 keep only the ring mean (the light that
-// scattered twice has mostly forgotten the side it left on; the path tracer is the judge:
-// docs/airlight.md). So a lamp's fog light at a point is s_q = K_t² Σ_k Ī_k c_kq and four vectors
+// step at μ = 0 as wide as the sine of the angle its light arrives at). Orders ≥ 2 bring
+// f(T, θ, Ω) h_k(T, θ) Ī₁_k · ω̂⊥, h_k the multiple-scattering table's first azimuthal harmonic
+// of the emission (MultipleScatteringTable::emissionHarmonics: how much of the side the light that
+// scattered more than once still remembers; 0, the ring means alone, with tables that lack it),
+// so G_k integrates Ω l¹_k + f h_k. So a lamp's fog light at a point is s_q = K_t² Σ_k Ī_k c_kq and four vectors
 // D_q = K_t² Σ_k Ī₁_k g_kq, all depending on the point's position only (fogLightLamp); the normal
 // enters per pixel (fogLightIrradiance):
 //   E = Σ_q b_q(μ) s_q + d_q(μ) D_q · n.
