@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 
 namespace fogbeam {
@@ -160,6 +161,32 @@ TEST(MultipleScattering, SmallOpticalDistancesFollowThePathTracer) {
     }
 }
 
+// One optical distance (K_t R = 2), the given angles, albedo 1, the default emission bins: the
+// measured-lamp tests' table.
+MultipleScatteringOptions binnedNodes(std::vector<double> angles) {
+  MultipleScatteringOptions o;
+  o.optical_distances = {2.0};
+  o.angles_rad = std::move(angles);
+  o.albedos = {1.0};
+  o.emission_edges_deg = MultipleScatteringOptions::defaults().emission_edges_deg;
+  o.paths = paths(6000);
+  return o;
+}
+
+// The path tracer's estimate along the eye's ray +z from the origin (30 000 paths, infinite fog
+// of extinction kt, albedo 1), for one lamp.
+std::optional<RadianceEstimate> alongZ(const Lamp& lamp, double kt, const Phase& phase, std::uint64_t seed,
+                                              ThreadPool& pool) {
+  Medium m;
+  m.extinction_per_m = kt;
+  m.albedo = 1.0;
+  m.phase = phase;
+  auto pt = PathTracer::build({lamp}, m);
+  if (!pt) return std::nullopt;
+  const Ray ray{Vec3(0.0), Vec3(0.0, 0.0, 1.0), std::numeric_limits<double>::infinity()};
+  return pt->radiance(std::span<const Ray>(&ray, 1), paths(30000), seed, &pool)[0];
+}
+
 // Measured lamps through the emission bins: L_ms = K_t² f Σ_k share_k Ī_k, Ī_k the lamp's mean
 // intensity over bin k's annulus about its direction to the eye. For a profile symmetric about
 // the lamp–eye line this is exact pixel by pixel (not only for ring means), so spots facing the
@@ -169,12 +196,7 @@ TEST(MultipleScattering, SmallOpticalDistancesFollowThePathTracer) {
 // facing away nothing at all.
 TEST(MultipleScattering, EmissionBinsGiveMeasuredLampsAgainstThePathTracer) {
   ThreadPool pool(2);
-  MultipleScatteringOptions o;
-  o.optical_distances = {2.0};
-  o.angles_rad = {2.0 * kDeg, 10.0 * kDeg};
-  o.albedos = {1.0};
-  o.emission_edges_deg = MultipleScatteringOptions::defaults().emission_edges_deg;
-  o.paths = paths(6000);
+  const MultipleScatteringOptions o = binnedNodes({2.0 * kDeg, 10.0 * kDeg});
   const Phase phase = HenyeyGreensteinPhase{0.85};
   auto t = MultipleScatteringTable::build(phase, o, &pool);
   ASSERT_TRUE(t.has_value()) << t.error().message;
@@ -222,23 +244,17 @@ TEST(MultipleScattering, EmissionBinsGiveMeasuredLampsAgainstThePathTracer) {
         predicted += shares[k] * num / den;
       }
       const double table = kt * kt * t->nodeMean(0, 0, j) * predicted;
-      Medium m;
-      m.extinction_per_m = kt;
-      m.albedo = 1.0;
-      m.phase = phase;
-      auto pt = PathTracer::build({lamp}, m);
-      ASSERT_TRUE(pt.has_value());
-      const Ray ray{Vec3(0.0), Vec3(0.0, 0.0, 1.0), std::numeric_limits<double>::infinity()};
-      const auto est = pt->radiance(std::span<const Ray>(&ray, 1), paths(30000), static_cast<std::uint64_t>(seed++), &pool)[0];
+      const auto est = alongZ(lamp, kt, phase, static_cast<std::uint64_t>(seed++), pool);
+      ASSERT_TRUE(est.has_value());
       // The table's own σ at this node, scaled as the prediction.
       const double tableSe = kt * kt * t->nodeStdError(0, 0, j) * predicted;
-      const double se = std::hypot(tableSe, est.multiple.std_error);
+      const double se = std::hypot(tableSe, est->multiple.std_error);
       std::printf("  %s, theta %4.1f deg: bins %.5g +- %.2g, path tracer %.5g +- %.2g (ratio %.3f)\n", c.name, th / kDeg,
-                  table, tableSe, est.multiple.mean, est.multiple.std_error, table / est.multiple.mean);
-      EXPECT_GT(est.multiple.mean, 0.0);
-      EXPECT_LT(std::abs(table - est.multiple.mean), 3.5 * se + 0.08 * est.multiple.mean) << c.name << " " << th;
+                  table, tableSe, est->multiple.mean, est->multiple.std_error, table / est->multiple.mean);
+      EXPECT_GT(est->multiple.mean, 0.0);
+      EXPECT_LT(std::abs(table - est->multiple.mean), 3.5 * se + 0.08 * est->multiple.mean) << c.name << " " << th;
       if (!test::reduced()) {
-        EXPECT_LT(se, 0.12 * est.multiple.mean) << c.name << " " << th;
+        EXPECT_LT(se, 0.12 * est->multiple.mean) << c.name << " " << th;
       }
     }
   }
@@ -256,12 +272,7 @@ TEST(MultipleScattering, EmissionBinsGiveMeasuredLampsAgainstThePathTracer) {
 // clamped cosine keeps mostly the first two.)
 TEST(MultipleScattering, EmissionHarmonicsGiveTheSideALampLightsAgainstThePathTracer) {
   ThreadPool pool(2);
-  MultipleScatteringOptions o;
-  o.optical_distances = {2.0};
-  o.angles_rad = {45.0 * kDeg};
-  o.albedos = {1.0};
-  o.emission_edges_deg = MultipleScatteringOptions::defaults().emission_edges_deg;
-  o.paths = paths(6000);
+  const MultipleScatteringOptions o = binnedNodes({45.0 * kDeg});
   const Phase phase = HenyeyGreensteinPhase{0.85};
   auto t = MultipleScatteringTable::build(phase, o, &pool);
   ASSERT_TRUE(t.has_value()) << t.error().message;
@@ -317,18 +328,12 @@ TEST(MultipleScattering, EmissionHarmonicsGiveTheSideALampLightsAgainstThePathTr
     const double f = kt * kt * t->nodeMean(0, 0, 0);
     harm[s] = f * withHarmonic;
     ring = f * ringOnly;
-    Medium m;
-    m.extinction_per_m = kt;
-    m.albedo = 1.0;
-    m.phase = phase;
-    auto tracer = PathTracer::build({lamp}, m);
-    ASSERT_TRUE(tracer.has_value());
-    const Ray ray{Vec3(0.0), Vec3(0.0, 0.0, 1.0), std::numeric_limits<double>::infinity()};
-    const auto est = tracer->radiance(std::span<const Ray>(&ray, 1), paths(30000), 290, &pool)[0];
-    pt[s] = est.multiple.mean;
-    ptSe[s] = est.multiple.std_error;
+    const auto est = alongZ(lamp, kt, phase, 290, pool);
+    ASSERT_TRUE(est.has_value());
+    pt[s] = est->multiple.mean;
+    ptSe[s] = est->multiple.std_error;
     const double fSe = kt * kt * t->nodeStdError(0, 0, 0);
-    const double se = std::hypot(fSe * withHarmonic, est.multiple.std_error);
+    const double se = std::hypot(fSe * withHarmonic, est->multiple.std_error);
     std::printf("  lamp brighter on the side %s the eye's ray: with the harmonic %.5g, ring means %.5g, path tracer "
                 "%.5g +- %.2g (ratios %.3f, %.3f)\n",
                 sign > 0 ? "of" : "away from", harm[s], ring, pt[s], ptSe[s], harm[s] / pt[s], ring / pt[s]);

@@ -482,26 +482,8 @@ double MultipleScatteringTable::valueAtAlbedo(std::size_t a, double T, double th
   return std::max(v, 0.0);
 }
 
-void MultipleScatteringTable::emissionShares(double opticalDistance, double theta, double* out) const noexcept {
-  if (fractions_.empty()) return;
-  const std::size_t nK = edges_.size() - 1;
-  const double lt = std::log(std::max(opticalDistance, t_.front())), lth = std::log(std::max(theta, theta_.front()));
-  const auto [i, fi] = locate(logT_, lt);
-  const auto [j, fj] = locate(logTheta_, lth);
-  const std::size_t i1 = std::min(i + 1, t_.size() - 1), j1 = std::min(j + 1, theta_.size() - 1);
-  const std::size_t nTh = theta_.size();
-  double sum = 0.0;
-  for (std::size_t k = 0; k < nK; ++k) {
-    const double v = (1 - fi) * ((1 - fj) * fractions_[(i * nTh + j) * nK + k] + fj * fractions_[(i * nTh + j1) * nK + k]) +
-                     fi * ((1 - fj) * fractions_[(i1 * nTh + j) * nK + k] + fj * fractions_[(i1 * nTh + j1) * nK + k]);
-    out[k] = v;
-    sum += v;
-  }
-  for (std::size_t k = 0; k < nK; ++k) out[k] = sum > 0.0 ? out[k] / sum : 1.0 / static_cast<double>(nK);
-}
-
-void MultipleScatteringTable::emissionHarmonics(double opticalDistance, double theta, double* out) const noexcept {
-  if (harmonics_.empty()) return;
+void MultipleScatteringTable::binsAt(const std::vector<double>& perBin, double opticalDistance, double theta,
+                                     double* out) const noexcept {
   const std::size_t nK = edges_.size() - 1;
   const double lt = std::log(std::max(opticalDistance, t_.front())), lth = std::log(std::max(theta, theta_.front()));
   const auto [i, fi] = locate(logT_, lt);
@@ -509,8 +491,21 @@ void MultipleScatteringTable::emissionHarmonics(double opticalDistance, double t
   const std::size_t i1 = std::min(i + 1, t_.size() - 1), j1 = std::min(j + 1, theta_.size() - 1);
   const std::size_t nTh = theta_.size();
   for (std::size_t k = 0; k < nK; ++k)
-    out[k] = (1 - fi) * ((1 - fj) * harmonics_[(i * nTh + j) * nK + k] + fj * harmonics_[(i * nTh + j1) * nK + k]) +
-             fi * ((1 - fj) * harmonics_[(i1 * nTh + j) * nK + k] + fj * harmonics_[(i1 * nTh + j1) * nK + k]);
+    out[k] = (1 - fi) * ((1 - fj) * perBin[(i * nTh + j) * nK + k] + fj * perBin[(i * nTh + j1) * nK + k]) +
+             fi * ((1 - fj) * perBin[(i1 * nTh + j) * nK + k] + fj * perBin[(i1 * nTh + j1) * nK + k]);
+}
+
+void MultipleScatteringTable::emissionShares(double opticalDistance, double theta, double* out) const noexcept {
+  if (fractions_.empty()) return;
+  const std::size_t nK = edges_.size() - 1;
+  binsAt(fractions_, opticalDistance, theta, out);
+  double sum = 0.0;
+  for (std::size_t k = 0; k < nK; ++k) sum += out[k];
+  for (std::size_t k = 0; k < nK; ++k) out[k] = sum > 0.0 ? out[k] / sum : 1.0 / static_cast<double>(nK);
+}
+
+void MultipleScatteringTable::emissionHarmonics(double opticalDistance, double theta, double* out) const noexcept {
+  if (!harmonics_.empty()) binsAt(harmonics_, opticalDistance, theta, out);
 }
 
 double MultipleScatteringTable::value(double opticalDistance, double theta, double albedo) const noexcept {

@@ -149,6 +149,8 @@ class MultipleScatteringTable {
     return (a * t_.size() + i) * theta_.size() + j;
   }
   [[nodiscard]] double valueAtAlbedo(std::size_t a, double T, double theta) const noexcept;
+  // A per-(T, θ, bin) array at (T, θ): bilinear in log T, log θ, clamped at the ends.
+  void binsAt(const std::vector<double>& perBin, double opticalDistance, double theta, double* out) const noexcept;
   Phase phase_;
   std::vector<double> t_, theta_, albedo_;
   std::vector<double> mean_, stderr_;
