@@ -254,3 +254,12 @@ vec3 viewedThroughFog(vec3 surface, float d) {
 // Depth-buffer value for the true distance d [m]: 1/(1 + d), compared with GL_GREATER on a
 // 32-bit float depth buffer (relative precision ≈ 1e-7 at every distance; 0 = sky).
 float depthFromDistance(float d) { return 1.0 / (1.0 + d); }
+
+// The ray through the centre of the pixel at window coordinates `frag` (gl_FragCoord.xy, y up),
+// in the camera frame and not normalised, as Camera::rayDirection builds it:
+//   local = (f, cx − x, cy − y_down) = (f, cx − frag.x, frag.y − (H − cy)),
+// with focalPrincipal = (f, cx, H − cy) [px]. In double: surface_plane.frag intersects planes
+// with it in double precision (distances within ~1e-7 relative near the horizon).
+dvec3 pixelRayLocal(dvec3 focalPrincipal, dvec2 frag) {
+  return dvec3(focalPrincipal.x, focalPrincipal.y - frag.x, frag.y - focalPrincipal.z);
+}

@@ -29,8 +29,8 @@ void main() {
   }
   vec4 nr = texelFetch(uGNormalRho, px, 0);
   vec2 gb = texelFetch(uGRhoGB, px, 0).rg;
-  // The pixel centre's ray, as surface_plane.frag and Camera::rayDirection build it.
-  vec3 local = vec3(uFocalPrincipal.x, uFocalPrincipal.y - gl_FragCoord.x, gl_FragCoord.y - uFocalPrincipal.z);
+  // The pixel centre's ray, as surface_plane.frag builds it (lit in single precision).
+  vec3 local = vec3(pixelRayLocal(dvec3(uFocalPrincipal), dvec2(gl_FragCoord.xy)));
   vec3 p = d * normalize(uWorldFromCamera * local);
   vec3 ls = surfaceLuminance(p, nr.xyz, vec3(nr.w, gb));
   outLuminance = vec4(viewedThroughFog(ls, d), 1.0);

@@ -1,10 +1,8 @@
 #version 450 core
 // fogbeam — surface_plane.frag: infinite planes by ray–plane intersection per pixel, into the
 // geometry buffer. Units: metres. The ray of pixel (i, j) goes through its centre, as Camera::rayDirection:
-//   local = (f, cx − x, cy − y_down) = (f, cx − gl_FragCoord.x, gl_FragCoord.y − (H − cy))   (camera frame)
-// with (cx, cy) the principal point in image pixels (x right, y down; (W/2, H/2) when centred)
-// and y_down = H − gl_FragCoord.y.
-//   ω = normalize(worldFromCamera · local)
+//   ω = normalize(worldFromCamera · pixelRayLocal(...))   (common_photometry.glsl)
+// with (cx, cy) the principal point in image pixels (x right, y down; (W/2, H/2) when centred).
 // Plane n·(X − P₀) = 0 with c = n·(P₀ − O) (camera-relative): t = c / (n·ω), the nearest t > 0 wins.
 // The ray and t are computed in double precision so that the distance stays within ~1e-7
 // relative even at grazing incidence near the horizon. Outputs (nothing is lit here:
@@ -29,8 +27,7 @@ layout(location = 1) out float outDistance;
 layout(location = 2) out vec2 outRhoGB;       // ρ green, blue
 
 void main() {
-  dvec3 local = dvec3(uFocalPrincipal.x, uFocalPrincipal.y - double(gl_FragCoord.x), double(gl_FragCoord.y) - uFocalPrincipal.z);
-  dvec3 d = normalize(uWorldFromCamera * local);
+  dvec3 d = normalize(uWorldFromCamera * pixelRayLocal(uFocalPrincipal, dvec2(gl_FragCoord.xy)));
   double best = 1.0e300LF;
   int hit = -1;
   for (int k = 0; k < uPlaneCount; ++k) {

@@ -271,26 +271,35 @@ json surfaceCpuFogLightStage(SizeRun& run) {
   return j;
 }
 
-// GL surface pass (fogbeam_gl, EGL): the whole render() call (upload, draw, PBO readback)
-// and, from its own counters, the GPU draw time and the readback time. When it works, the
-// stages below use its buffers, as `fogbeam render` does.
-json surfaceGlStage(SizeRun& run) {
-  if (!run.gl) return {{"available", false}, {"note", "GL: not available (no EGL)"}};
+// Times `frames` GL surface passes of `scene`: the whole render() call (upload, draw, PBO
+// readback) and, from the pass's own counters, GPU draw, readback and CPU shading; on a GL
+// failure the stage's "not available" answer (`available` false).
+json timeGlSurfaces(SizeRun& run, const Scene& scene, SurfaceBuffers& buffers) {
   StageStats total, draw, readback, shade;
-  SurfaceBuffers glBuffers;
   for (int f = 0; f < run.o.frames; ++f) {
     const auto t0 = Clock::now();
-    if (Status st = run.gl->render(run.scene, glBuffers); !st)
+    if (Status st = run.gl->render(scene, buffers); !st)
       return {{"available", false}, {"note", "GL failed: " + st.error().message}};
     total.ms.push_back(msSince(t0));
     draw.ms.push_back(run.gl->stats().surface_ms);
     readback.ms.push_back(run.gl->stats().readback_ms);
     shade.ms.push_back(run.gl->stats().shade_ms);
   }
+  return {{"available", true}, {"total", total.toJson()}, {"draw", draw.toJson()},
+          {"readback", readback.toJson()}, {"shade", shade.toJson()}};
+}
+
+// GL surface pass (fogbeam_gl, EGL). When it works, the stages below use its buffers, as
+// `fogbeam render` does.
+json surfaceGlStage(SizeRun& run) {
+  if (!run.gl) return {{"available", false}, {"note", "GL: not available (no EGL)"}};
+  SurfaceBuffers glBuffers;
+  json j = timeGlSurfaces(run, run.scene, glBuffers);
+  if (!j["available"].get<bool>()) return j;
   run.surface = std::move(glBuffers);
-  return {{"available", true}, {"note", run.gl->description()}, {"total", total.toJson()},
-          {"draw", draw.toJson()}, {"readback", readback.toJson()}, {"shade", shade.toJson()},
-          {"shading", run.gl->shading() == SurfaceShading::Cpu ? "cpu" : "gpu"}};
+  j["note"] = run.gl->description();
+  j["shading"] = run.gl->shading() == SurfaceShading::Cpu ? "cpu" : "gpu";
+  return j;
 }
 
 // The same pass with the fog's scattered light on the surfaces ([glow] surfaces): on a GPU the
@@ -302,23 +311,15 @@ json surfaceGlFogLightStage(SizeRun& run) {
   Scene scene = run.scene;
   scene.effects.glow.enabled = true;
   scene.effects.glow.surfaces = true;
-  StageStats total, draw, readback, shade;
   SurfaceBuffers buffers;
   const auto tf = Clock::now();
   if (Status st = run.gl->render(scene, buffers); !st)
     return {{"available", false}, {"note", "GL failed: " + st.error().message}};
   const double firstMs = msSince(tf);
-  for (int f = 0; f < run.o.frames; ++f) {
-    const auto t0 = Clock::now();
-    if (Status st = run.gl->render(scene, buffers); !st)
-      return {{"available", false}, {"note", "GL failed: " + st.error().message}};
-    total.ms.push_back(msSince(t0));
-    draw.ms.push_back(run.gl->stats().surface_ms);
-    readback.ms.push_back(run.gl->stats().readback_ms);
-    shade.ms.push_back(run.gl->stats().shade_ms);
-  }
-  return {{"available", true}, {"first_frame_ms", firstMs}, {"total", total.toJson()}, {"draw", draw.toJson()},
-          {"readback", readback.toJson()}, {"shade", shade.toJson()}};
+  json j = timeGlSurfaces(run, scene, buffers);
+  if (!j["available"].get<bool>()) return j;
+  j["first_frame_ms"] = firstMs;
+  return j;
 }
 
 // Airlight, accurate method, first frame at this size: it builds the view tables of the

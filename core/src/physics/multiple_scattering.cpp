@@ -669,38 +669,38 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
     const std::size_t nK = t.edges_.size() - 1, nL = t.t_.size() * t.theta_.size();
     if (!std::getline(f, line) || (++lineNo, line != "emission_shares"))
       return fail("expected 'emission_shares' (the table has emission bins)");
-    t.fractions_.resize(nL * nK);
-    for (std::size_t l = 0; l < nL; ++l) {
-      if (!std::getline(f, line)) {
+    // nL lines of nK numbers each, every one accepted by `ok(value, index)` (`bound` says how).
+    auto binLines = [&](std::vector<double>& v, const std::string& what, const char* bound, auto ok) -> Status {
+      v.resize(nL * nK);
+      for (std::size_t l = 0; l < nL; ++l) {
+        if (!std::getline(f, line)) {
+          ++lineNo;
+          return fail("expected " + std::to_string(nL) + " " + what + " lines, found " + std::to_string(l));
+        }
         ++lineNo;
-        return fail("expected " + std::to_string(nL) + " emission share lines, found " + std::to_string(l));
+        std::istringstream ls(line);
+        for (std::size_t k = 0; k < nK; ++k)
+          if (!(ls >> v[l * nK + k]) || !ok(v[l * nK + k], l * nK + k))
+            return fail("expected " + std::to_string(nK) + " " + what + "s, each " + bound);
       }
-      ++lineNo;
-      std::istringstream ls(line);
-      for (std::size_t k = 0; k < nK; ++k)
-        if (!(ls >> t.fractions_[l * nK + k]) || !(t.fractions_[l * nK + k] >= 0.0 && t.fractions_[l * nK + k] <= 1.0 + 1e-9))
-          return fail("expected " + std::to_string(nK) + " emission shares in [0, 1]");
-    }
+      return Ok{};
+    };
+    if (Status s = binLines(t.fractions_, "emission share", "in [0, 1]",
+                            [](double x, std::size_t) { return x >= 0.0 && x <= 1.0 + 1e-9; });
+        !s)
+      return s.error();
     // Optional (tables from before 2026-11-27 have none): the emission's first azimuthal harmonic,
     // each |value| at most its share (a mean of the share's light times a cosine).
     while (std::getline(f, line)) {
       ++lineNo;
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
       if (line != "emission_harmonics") return fail("expected 'emission_harmonics' or the end of the table");
-      t.harmonics_.resize(nL * nK);
-      for (std::size_t l = 0; l < nL; ++l) {
-        if (!std::getline(f, line)) {
-          ++lineNo;
-          return fail("expected " + std::to_string(nL) + " emission harmonic lines, found " + std::to_string(l));
-        }
-        ++lineNo;
-        std::istringstream ls(line);
-        for (std::size_t k = 0; k < nK; ++k) {
-          double& h = t.harmonics_[l * nK + k];
-          if (!(ls >> h) || !std::isfinite(h) || std::abs(h) > t.fractions_[l * nK + k] + 1e-5)
-            return fail("expected " + std::to_string(nK) + " emission harmonics, each within ± its share");
-        }
-      }
+      if (Status s = binLines(t.harmonics_, "emission harmonic", "within ± its share",
+                              [&](double h, std::size_t i) {
+                                return std::isfinite(h) && std::abs(h) <= t.fractions_[i] + 1e-5;
+                              });
+          !s)
+        return s.error();
       break;
     }
     while (std::getline(f, line)) {
