@@ -416,6 +416,40 @@ TEST(AirlightKernels, ViewTableMatchesAccurateAndScalar) {
               percentile(rel, 0.5), p95, percentile(rel, 1.0), rel.size(), vt.build_seconds,
               static_cast<double>(vt.bytes()) / 1e6);
   EXPECT_LT(p95, 0.01);
+
+  // The same table with its rays through the pencil (FastPathOptions::pencil_view_tables, the
+  // renderer's default): node by node against the per-ray table (the pencil's own error: its
+  // spokes and the kernel expansion), then looked up against the accurate method per ray.
+  PencilOptions po;
+  po.spoke_tolerance = 0.0;
+  auto pencil = PencilAirlight::build(*ev, cam.position_m, po);
+  ASSERT_TRUE(pencil.has_value());
+  const kernels::ViewTable vp = kernels::ViewTable::build(*ev, cam, 0.25, 48, pool, 0.0, &*pencil);
+  ASSERT_TRUE(vp.sameGrid(vt));
+  double maxNode = 0.0;
+  for (std::size_t k = 0; k < vt.data.size(); k += 2) maxNode = std::max(maxNode, static_cast<double>(vt.data[k]));
+  std::vector<double> nodeRel;
+  for (std::size_t k = 0; k < vt.data.size(); k += 2) {
+    const double a = vt.data[k], c = vp.data[k];
+    ASSERT_EQ(vt.data[k + 1], vp.data[k + 1]);  // the slopes are the integrand itself, not the pencil's
+    if (a > 1e-3 * maxNode) nodeRel.push_back(std::abs(c - a) / a);
+  }
+  ASSERT_GT(nodeRel.size(), 10000u);
+  std::vector<double> relP;
+  for (std::size_t i = 0; i < b.n; ++i) {
+    if (!(want[i] > 1e-3 * maxWant)) continue;
+    const double gp = vp.lookup((static_cast<double>(geo.cx) - static_cast<double>(b.x[i])) / f,
+                                (static_cast<double>(geo.cy) - static_cast<double>(b.y[i])) / f,
+                                static_cast<double>(b.d[i]));
+    relP.push_back(std::abs(gp - want[i]) / want[i]);
+  }
+  std::printf("  pencil's table: nodes vs the per-ray table p95 %.2e, max %.2e (%zu nodes); looked up vs accurate "
+              "median %.2e, p95 %.2e, max %.2e (build %.2f s against %.2f s)\n",
+              percentile(nodeRel, 0.95), percentile(nodeRel, 1.0), nodeRel.size(), percentile(relP, 0.5),
+              percentile(relP, 0.95), percentile(relP, 1.0), vp.build_seconds, vt.build_seconds);
+  EXPECT_LT(percentile(nodeRel, 0.95), 2e-3);
+  EXPECT_LT(percentile(relP, 0.95), 0.01);
+
   compareAllTargets(
       b,
       [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {

@@ -470,7 +470,8 @@ void PencilAirlight::projectSpoke(int s) const {
     }
 }
 
-double PencilAirlight::expansionIntegral(const SpokePair& sp, const float* u, double xEnd) const noexcept {
+double PencilAirlight::expansionIntegral(const SpokePair& sp, const float* u, double xEnd,
+                                         ExpansionSums& whole) const noexcept {
   const detail::PsiBasis& basis = detail::psiBasis();
   const int nf = basis.functions();
   const float w0 = static_cast<float>(1.0 - sp.t), w1 = static_cast<float>(sp.t);
@@ -480,14 +481,18 @@ double PencilAirlight::expansionIntegral(const SpokePair& sp, const float* u, do
   const double t0 = basis.knot(j0);
   // Functions that end before t_j0 whole, the three that straddle t_j0 up to it, then the four
   // that live on [t_j0, t_j0+1) from t_j0 to xEnd; both spokes in one pass, blended.
-  // Eight float partial sums (the compiler keeps them in one vector register): ~60 terms.
-  float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-  int r = 0;
+  // Eight float partial sums, function r in lane r mod 8 (the compiler keeps them in one vector
+  // register): ~60 terms. `whole` carries them from the last (nearer) end of the same ray, so a
+  // ray's ends in ascending order add each function once (a view table's 48 distances).
+  float* acc = whole.acc;
+  int r = whole.next;
+  for (; r < j0 && r % 8 != 0; ++r) acc[r % 8] += u[r] * (w0 * p0[r] + w1 * p1[r]);
   for (; r + 8 <= j0; r += 8)
     for (int l = 0; l < 8; ++l) acc[l] += u[r + l] * (w0 * p0[r + l] + w1 * p1[r + l]);
-  for (int l = 0; r < j0; ++r, ++l) acc[l] += u[r] * (w0 * p0[r] + w1 * p1[r]);
+  for (; r < j0; ++r) acc[r % 8] += u[r] * (w0 * p0[r] + w1 * p1[r]);
+  whole.next = r;
   double sum = 0.0;
-  for (float a : acc) sum += static_cast<double>(a);
+  for (int l = 0; l < 8; ++l) sum += static_cast<double>(acc[l]);
   const float* left0 = p0 + nf + 3 * j0;
   const float* left1 = p1 + nf + 3 * j0;
   for (int i = 0; i < 3; ++i) sum += static_cast<double>(u[j0 + i]) * static_cast<double>(w0 * left0[i] + w1 * left1[i]);
@@ -629,13 +634,14 @@ void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* dis
     const double cutPsi = basis.knot(cut);
     const double scaleFit = ev.medium().albedo * kt / h * (tau == tau_ ? expNegTau_ : std::exp(-tau));
     std::size_t firstTail = n;
+    ExpansionSums whole;  // the ends ascend: each function's whole integral added once
     for (std::size_t m = 0; m < n; ++m) {
       if (!(distances[m] > 0.0)) {
         out[m] = 0.0;
         continue;
       }
       const double xEnd = std::min(psi[m], cutPsi);
-      out[m] = scaleFit * expansionIntegral(sp, u, xEnd);
+      out[m] = scaleFit * expansionIntegral(sp, u, xEnd, whole);
       if (psi[m] > cutPsi && firstTail == n) firstTail = m;
     }
     // The tail holds the light scattered beyond the cut, attenuated at least by M's exponent

@@ -108,22 +108,23 @@ std::array<double, 3> GMomentTable::cumulative(const KWeights& kw, double theta)
   const double a = theta_[static_cast<std::size_t>(j)], b = theta_[static_cast<std::size_t>(j + 1)];
   const double dt = b - a;
   const double s = std::clamp((theta - a) / dt, 0.0, 1.0);
-  // Cubic Hermite basis in θ; the derivative of T_q is θ^q G.
+  // Cubic Hermite basis in θ; the derivative of T_q is θ^q G. Four lanes per row, (T_0, T_1,
+  // T_2, G) as stored, so that the compiler keeps each row's sum in vector registers: lane 3
+  // carries a value nobody reads. (Written as three scalar sums with the derivatives formed
+  // per row, this took ~70 ns a call, most of a view table's build and of an ego lamp's tail.)
   const double s2 = s * s, s3 = s2 * s;
   const double h00 = 2 * s3 - 3 * s2 + 1, h10 = (s3 - 2 * s2 + s) * dt, h01 = -2 * s3 + 3 * s2,
                h11 = (s3 - s2) * dt;
-  std::array<double, 3> out{0.0, 0.0, 0.0};
+  const double pa[4] = {1.0, a, a * a, 0.0}, pb[4] = {1.0, b, b * b, 0.0};
+  double acc[4] = {0.0, 0.0, 0.0, 0.0};
   for (int r = 0; r < 4; ++r) {
     const double* c0 = data_.data() + (static_cast<std::size_t>(kw.row[r]) * static_cast<std::size_t>(nTheta_) +
                                        static_cast<std::size_t>(j)) * 4;
     const double* c1 = c0 + 4;
-    const double ga = c0[3], gb = c1[3];
-    const double da[3] = {ga, ga * a, ga * a * a};
-    const double db[3] = {gb, gb * b, gb * b * b};
-    for (int q = 0; q < 3; ++q)
-      out[static_cast<std::size_t>(q)] += kw.w[r] * (h00 * c0[q] + h10 * da[q] + h01 * c1[q] + h11 * db[q]);
+    const double ga = h10 * c0[3], gb = h11 * c1[3], wr = kw.w[r];
+    for (int q = 0; q < 4; ++q) acc[q] += wr * (h00 * c0[q] + h01 * c1[q] + ga * pa[q] + gb * pb[q]);
   }
-  return out;
+  return {acc[0], acc[1], acc[2]};
 }
 
 // ---------------------------------------------------------------------------------------------

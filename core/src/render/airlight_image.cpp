@@ -1206,7 +1206,21 @@ double refreshSkyTables(State& st, ThreadPool& pool) {
 // around its image. `viewD` is the distance scale shared by every vehicle lamp's tables.
 void buildLampViewTables(const AirlightEvaluator& ev, const Camera& cam, const ViewKey& key, const FastPathOptions& fast,
                          double viewD, ThreadPool& pool, kernels::ViewTable* tables, State::RayGuard& guard) {
-  tables[0] = kernels::ViewTable::build(ev, cam, fast.view_table_step_deg, fast.view_table_distances, pool, viewD);
+  std::optional<PencilAirlight> pencil;
+  if (fast.pencil_view_tables) {
+    PencilOptions po = fast.pencil_options;
+    po.spoke_tolerance = 0.0;  // no plan: a table's rays read every azimuth about the lamp
+    if (auto pa = PencilAirlight::build(ev, cam.position_m, po)) {
+      pencil.emplace(std::move(pa).value());
+      // Every spoke up front on all threads: left to the table's rows, neighbouring rows want
+      // the same spoke at once and one thread waits while the other samples it.
+      const PencilAirlight* pp = &*pencil;
+      pool.parallelFor(static_cast<std::size_t>(pp->spokeCount()),
+                       [pp](std::size_t s) { pp->prepareSpoke(static_cast<int>(s)); });
+    }
+  }
+  const PencilAirlight* pp = pencil ? &*pencil : nullptr;
+  tables[0] = kernels::ViewTable::build(ev, cam, fast.view_table_step_deg, fast.view_table_distances, pool, viewD, pp);
   for (std::size_t t = 1; t < kTablesPerLamp; ++t) tables[t] = kernels::ViewTable{};
   guard = {};
   if (key.lampInCamera.x <= 0.0) return;
@@ -1229,7 +1243,7 @@ void buildLampViewTables(const AirlightEvaluator& ev, const Camera& cam, const V
     const int nodes = static_cast<int>(std::ceil(2.0 * (outer + 2.0 * step) / step)) + 1;
     kernels::ViewTable& in = tables[t];
     in = kernels::ViewTable::buildWindow(ev, cam, la - outer - 2.0 * step, lb - outer - 2.0 * step, nodes, nodes, step,
-                                         fast.view_table_distances, pool, viewD);
+                                         fast.view_table_distances, pool, viewD, pp);
     in.guardA = static_cast<float>(la);
     in.guardB = static_cast<float>(lb);
     in.outerR2 = static_cast<float>(outer * outer);
@@ -1313,6 +1327,13 @@ detail::TableKey viewTableKey(const AirlightEvaluator& ev, const Camera& cam, co
   const AirlightOptions& o = ev.options();
   k.add(static_cast<std::int64_t>(o.g_table_theta)).add(static_cast<std::int64_t>(o.g_table_k)).add(o.g_table_k_max);
   k.add(static_cast<std::int64_t>(o.accurate_segments)).add(static_cast<std::int64_t>(o.accurate_spot_segments));
+  // Rays through the pencil (every spoke: its spoke tolerance is not used) or per ray.
+  k.add(static_cast<std::int64_t>(fast.pencil_view_tables ? 1 : 0));
+  if (fast.pencil_view_tables) {
+    const PencilOptions& po = fast.pencil_options;
+    k.add(static_cast<std::int64_t>(po.spokes)).add(po.piece_deg).add(po.merge_tolerance);
+    k.add(static_cast<std::int64_t>(po.kernel_expansion ? 1 : 0));
+  }
   return k;
 }
 

@@ -276,14 +276,14 @@ ViewTableUse ViewTableUse::of(const ViewTable& t) noexcept {
 }
 
 ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
-                           ThreadPool& pool, double distanceScale) {
+                           ThreadPool& pool, double distanceScale, const PencilAirlight* pencil) {
   const double step = std::tan(radians(stepDeg));
   if (camera.isCentred()) {
     const double ta = std::tan(0.5 * camera.fov_x);
     const double tb = ta * camera.height / camera.width;  // square pixels
     // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
     return buildWindow(lamp, camera, -ta - step, -tb - step, static_cast<int>(std::ceil(2 * ta / step)) + 3,
-                       static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool, distanceScale);
+                       static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool, distanceScale, pencil);
   }
   // Off-axis: pixel x ∈ [0, W] maps to a = (cx − x)/f ∈ [(cx − W)/f, cx/f] = [−tan right, tan left]
   // and y ∈ [0, H] to b = (cy − y)/f ∈ [(cy − H)/f, cy/f] = [−tan down, tan up] (PixelGeometry).
@@ -292,11 +292,12 @@ ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, 
   const double aLo = (c.x - camera.width) / f, aHi = c.x / f;
   const double bLo = (c.y - camera.height) / f, bHi = c.y / f;
   return buildWindow(lamp, camera, aLo - step, bLo - step, static_cast<int>(std::ceil((aHi - aLo) / step)) + 3,
-                     static_cast<int>(std::ceil((bHi - bLo) / step)) + 3, step, nX, pool, distanceScale);
+                     static_cast<int>(std::ceil((bHi - bLo) / step)) + 3, step, nX, pool, distanceScale, pencil);
 }
 
 ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0, double b0, int nA,
-                                 int nB, double step, int nX, ThreadPool& pool, double distanceScale) {
+                                 int nB, double step, int nX, ThreadPool& pool, double distanceScale,
+                                 const PencilAirlight* pencil) {
   const auto t0 = std::chrono::steady_clock::now();
   ViewTable vt;
   vt.nA = std::max(nA, 2);
@@ -337,7 +338,8 @@ ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& ca
       const double a = dbl(t.a0) + ia * step, b = dbl(t.b0) + static_cast<double>(jb) * step;
       const Vec3 local = glm::normalize(Vec3(1.0, a, b));
       const Ray ray{camera.position_m, glm::normalize(camera.worldFromCamera * local), 0.0};
-      lamp.evaluateCumulative(ray, dist.data(), nXs, out.data());
+      if (pencil) pencil->evaluateCumulative(ray.direction, dist.data(), nXs, out.data());
+      else lamp.evaluateCumulative(ray, dist.data(), nXs, out.data());
       float* cellp = t.data.data() + (jb * static_cast<std::size_t>(t.nA) + static_cast<std::size_t>(ia)) * nXs * 2;
       for (std::size_t k = 0; k < nXs; ++k) {
         // dL/dd: the in-scattering integrand at distance d (the integrand of L_m in airlight.hpp).

@@ -136,9 +136,15 @@ class PencilAirlight {
   void integrate(int s0, int s1, double t, double psiFoot, double psiEnd, const void* kWeights, const double* psi,
                  std::size_t n, double* out, double psiStart = 0.0) const;
   void projectSpoke(int s) const;
+  /// The whole functions' partial sums of one ray's ends so far (expansionIntegral).
+  struct ExpansionSums {
+    float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};  // function r's term in lane r mod 8
+    int next = 0;                              // the first function not yet added
+  };
   /// ∫_0^{xEnd} (Σ_r u_r β_r) I dψ, I the blend of the pair's spokes (xEnd within the
-  /// expansion's range).
-  [[nodiscard]] double expansionIntegral(const SpokePair& sp, const float* u, double xEnd) const noexcept;
+  /// expansion's range). `whole` starts empty per ray; its ends must come in ascending order.
+  [[nodiscard]] double expansionIntegral(const SpokePair& sp, const float* u, double xEnd,
+                                         ExpansionSums& whole) const noexcept;
 
   const AirlightEvaluator* lamp_ = nullptr;
   PencilOptions options_;

@@ -116,6 +116,10 @@ struct FastPathOptions {
   bool enabled = true;              ///< false: every lamp through the per-ray evaluator
   double view_table_step_deg = 0.2; ///< view-table direction spacing at the image centre, degrees
   int view_table_distances = 48;    ///< view-table distance nodes per direction
+  /// View tables' rays through a PencilAirlight of the lamp from the eye (every spoke sampled
+  /// once per build) instead of the per-ray accurate method: the same integral, several times
+  /// faster to build (docs/airlight.md, "View tables from the pencil"). false: per ray.
+  bool pencil_view_tables = true;
   /// Measured or spot lamps fixed in the world or on other vehicles (street lamps, traffic):
   /// their pose relative to the eye changes whenever either moves, so nothing can be
   /// tabulated once for them.

@@ -35,6 +35,7 @@
 #pragma once
 
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/airlight_pencil.hpp>
 #include <fogbeam/physics/medium.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/thread_pool.hpp>
@@ -150,13 +151,18 @@ struct ViewTable {
   /// `distanceScale` (metres) fixes D of x = d / (d + D); 0 picks defaultDistanceScale(). Tables
   /// of several lamps built with the same camera, step, nX and D share one grid (sameGrid) and
   /// can be summed (add).
+  /// `pencil`: when set (a PencilAirlight of `lamp` whose eye is the camera's position), the
+  /// table's rays go through it instead of the lamp's per-ray evaluator: the same integral,
+  /// the profile sampled once per plane through eye and lamp (docs/airlight.md, "View tables
+  /// from the pencil").
   [[nodiscard]] static ViewTable build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
-                                       ThreadPool& pool, double distanceScale = 0.0);
+                                       ThreadPool& pool, double distanceScale = 0.0,
+                                       const PencilAirlight* pencil = nullptr);
   /// The same over a window of the tangent plane: nA × nB nodes from (a0, b0), spacing
   /// `step` in tangent units.
   [[nodiscard]] static ViewTable buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0,
                                              double b0, int nA, int nB, double step, int nX, ThreadPool& pool,
-                                             double distanceScale = 0.0);
+                                             double distanceScale = 0.0, const PencilAirlight* pencil = nullptr);
   /// D for a lamp at `lampDistance` metres from the eye in fog of extinction `kt`: about a
   /// third of the distance nodes within 0.3 mean free paths, and D at least twice the lamp's
   /// distance (the near-lamp peak), clamped to [.., 200 m].
