@@ -166,6 +166,31 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
   auto fitRow = [&](int ig) {
     const double gamma = gammaAt(ig * gS);
     std::vector<double> band(static_cast<std::size_t>(r_) * 4), rhs(static_cast<std::size_t>(r_));
+    // The fit's sample points (3-point Gauss on both halves of every knot interval), their basis
+    // values and what kernel() computes there that does not depend on τ: the phase function and
+    // the path excess. Taken once per γ row instead of once per (γ, τ) node (the phase function,
+    // cos, tan per sample were most of the table's build); m below is then kernel()'s value bit for
+    // bit (the same expressions in the same order).
+    const int nInt = basis.intervals();
+    const auto nSamples = static_cast<std::size_t>(nInt) * 6;
+    std::vector<double> sw(nSamples), sp(nSamples), se(nSamples), sb(nSamples * 4);
+    std::vector<char> beyond(nSamples);
+    for (int j = 0; j < nInt; ++j) {
+      const double a = basis.knot(j), b = basis.knot(j + 1);
+      for (int sub = 0; sub < 2; ++sub) {
+        const double sa = a + 0.5 * sub * (b - a), half = 0.25 * (b - a), mid = sa + half;
+        for (int g = 0; g < 3; ++g) {
+          const auto q = static_cast<std::size_t>(j * 6 + sub * 3 + g);
+          const double x = mid + half * kGL3x[g];
+          sw[q] = half * kGL3w[g];
+          basis.eval(j, x, sb.data() + 4 * q);
+          const double chi = x + gamma;
+          sp[q] = evalPhase(phase, std::cos(chi));
+          beyond[q] = chi >= kPi - 1e-12;
+          se[q] = beyond[q] ? 0.0 : std::max(std::cos(gamma) + std::sin(gamma) * std::tan(0.5 * chi) - 1.0, 0.0);
+        }
+      }
+    }
     for (int it = 0; it < nT_; ++it) {
       const double tau = kTau0 * std::expm1(it / tS);
       const int cut = cutOf(basis, gamma, tau);
@@ -176,19 +201,15 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
       std::fill(band.begin(), band.end(), 0.0);
       std::fill(rhs.begin(), rhs.end(), 0.0);
       for (int j = 0; j < cut; ++j) {
-        const double a = basis.knot(j), b = basis.knot(j + 1);
-        for (int sub = 0; sub < 2; ++sub) {
-          const double sa = a + 0.5 * sub * (b - a), half = 0.25 * (b - a), mid = sa + half;
-          for (int g = 0; g < 3; ++g) {
-            const double x = mid + half * kGL3x[g], w = half * kGL3w[g];
-            double bv[4];
-            basis.eval(j, x, bv);
-            const double m = kernel(phase, x, gamma, tau);
-            for (int i = 0; i < 4; ++i) {
-              const std::size_t r = static_cast<std::size_t>(j + i);
-              rhs[r] += w * bv[i] * m;
-              for (int d = 0; d <= i; ++d) band[r * 4 + static_cast<std::size_t>(d)] += w * bv[i] * bv[i - d];
-            }
+        for (int sg = 0; sg < 6; ++sg) {
+          const auto q = static_cast<std::size_t>(j * 6 + sg);
+          const double w = sw[q];
+          const double* bv = sb.data() + 4 * q;
+          const double m = tau <= 0.0 ? sp[q] : beyond[q] ? 0.0 : std::exp(-tau * se[q]) * sp[q];
+          for (int i = 0; i < 4; ++i) {
+            const std::size_t r = static_cast<std::size_t>(j + i);
+            rhs[r] += w * bv[i] * m;
+            for (int d = 0; d <= i; ++d) band[r * 4 + static_cast<std::size_t>(d)] += w * bv[i] * bv[i - d];
           }
         }
       }
