@@ -105,6 +105,10 @@ RayLampGeometry rayLampGeometry(const Ray& ray, const Vec3& lampPosition) noexce
   return g;
 }
 
+GFactors integrandGFactors(const Phase& phase, double theta) noexcept {
+  return {evalPhase(phase, -std::sin(theta)), tanHalfAngleSum(theta)};
+}
+
 double integrandG(const Phase& phase, double k, double theta) noexcept {
   const double pf = evalPhase(phase, -std::sin(theta));
   if (k == 0.0) return pf;

@@ -41,26 +41,45 @@ GMomentTable::GMomentTable(const Phase& phase, int nTheta, int nK, double kMax)
   theta_.resize(static_cast<std::size_t>(nTheta_));
   for (int j = 0; j < nTheta_; ++j) theta_[static_cast<std::size_t>(j)] = thetaAt(j);
   data_.assign(static_cast<std::size_t>(nK_) * static_cast<std::size_t>(nTheta_) * 4, 0.0);
+  // The quadrature's samples (gaussCell's 8 per cell, in its order) and G's k-independent factors
+  // there and at the nodes, once: each k row then needs one exp per sample, not a phase function,
+  // a sine and a tangent as well (integrandG, bit for bit: GFactors). 73 → 21 ms for HG 0.85.
+  struct Sample {
+    double x, w;
+    GFactors f;
+  };
+  std::vector<Sample> samples;
+  samples.reserve(static_cast<std::size_t>(nTheta_) * 8);
+  std::vector<GFactors> nodeF(static_cast<std::size_t>(nTheta_));
+  for (int j = 0; j < nTheta_; ++j) {
+    const double th = theta_[static_cast<std::size_t>(j)];
+    if (j > 0)
+      gaussCell(theta_[static_cast<std::size_t>(j - 1)], th,
+                [&](double x, double w) { samples.push_back({x, w, integrandGFactors(phase, x)}); });
+    nodeF[static_cast<std::size_t>(j)] = integrandGFactors(phase, th);
+  }
+  const std::size_t perCell = samples.size() / static_cast<std::size_t>(std::max(nTheta_ - 1, 1));
+  auto g = [](double k, const GFactors& f) { return k == 0.0 ? f.phase : std::exp(-k * f.exponent) * f.phase; };
   for (int i = 0; i < nK_; ++i) {
     const double u = static_cast<double>(i) / (nK_ - 1);
     const double k = k0_ * std::expm1(u * logSpan_);
     double* row = data_.data() + static_cast<std::size_t>(i) * static_cast<std::size_t>(nTheta_) * 4;
     double t0 = 0.0, t1 = 0.0, t2 = 0.0;
+    const Sample* smp = samples.data();
     for (int j = 0; j < nTheta_; ++j) {
-      const double th = theta_[static_cast<std::size_t>(j)];
       if (j > 0) {
-        gaussCell(theta_[static_cast<std::size_t>(j - 1)], th, [&](double x, double w) {
-          const double g = integrandG(phase, k, x) * w;
-          t0 += g;
-          t1 += g * x;
-          t2 += g * x * x;
-        });
+        for (std::size_t q = 0; q < perCell; ++q, ++smp) {
+          const double gw = g(k, smp->f) * smp->w;
+          t0 += gw;
+          t1 += gw * smp->x;
+          t2 += gw * smp->x * smp->x;
+        }
       }
       double* cell = row + 4 * j;
       cell[0] = t0;
       cell[1] = t1;
       cell[2] = t2;
-      cell[3] = integrandG(phase, k, th);
+      cell[3] = g(k, nodeF[static_cast<std::size_t>(j)]);
     }
   }
 }

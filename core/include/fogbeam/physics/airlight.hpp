@@ -141,6 +141,14 @@ struct RayLampGeometry {
 
 /// G(k, θ) of eq. (3) for a phase function.
 [[nodiscard]] double integrandG(const Phase& phase, double k, double theta) noexcept;
+/// G's two factors at θ, neither of which depends on k: G(k, θ) = e^{−k · exponent} · phase with
+/// phase = p(−sin θ) and exponent = tan(π/4 + θ/2) (→ ∞ as θ → π/2). integrandG is exactly
+/// `k == 0 ? phase : std::exp(-k * exponent) * phase`, so a table over many k computes these once.
+struct GFactors {
+  double phase;
+  double exponent;
+};
+[[nodiscard]] GFactors integrandGFactors(const Phase& phase, double theta) noexcept;
 
 /// The accurate method's cumulative G moments T_q(k, θ) = ∫_{−π/2}^{θ} θ'^q G(k, θ') dθ' for one
 /// phase function, in float, as the GPU path uploads them (docs/airlight.md, "GPU path"). The
