@@ -110,9 +110,7 @@ GFactors integrandGFactors(const Phase& phase, double theta) noexcept {
 }
 
 double integrandG(const Phase& phase, double k, double theta) noexcept {
-  const double pf = evalPhase(phase, -std::sin(theta));
-  if (k == 0.0) return pf;
-  return std::exp(-k * tanHalfAngleSum(theta)) * pf;
+  return integrandGFrom(k, integrandGFactors(phase, theta));
 }
 
 Result<AirlightEvaluator> AirlightEvaluator::build(const Lamp& lamp, const Medium& medium, AirlightMethod method,

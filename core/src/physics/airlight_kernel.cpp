@@ -136,14 +136,16 @@ const PsiBasis& psiBasis() {
   return basis;
 }
 
-double KernelTable::kernel(const Phase& phase, double psi, double gamma, double tau) noexcept {
+KernelTable::Factors KernelTable::kernelFactors(const Phase& phase, double psi, double gamma) noexcept {
   const double chi = psi + gamma;
-  const double p = evalPhase(phase, std::cos(chi));
-  if (tau <= 0.0) return p;
-  if (chi >= kPi - 1e-12) return 0.0;
+  const bool beyond = chi >= kPi - 1e-12;
   // cos γ + sin γ tan(χ/2) − 1 ≥ 0: the path lamp → point → eye less the direct one, over D.
-  const double excess = std::cos(gamma) + std::sin(gamma) * std::tan(0.5 * chi) - 1.0;
-  return std::exp(-tau * std::max(excess, 0.0)) * p;
+  const double excess = beyond ? 0.0 : std::max(std::cos(gamma) + std::sin(gamma) * std::tan(0.5 * chi) - 1.0, 0.0);
+  return {evalPhase(phase, std::cos(chi)), excess, beyond};
+}
+
+double KernelTable::kernel(const Phase& phase, double psi, double gamma, double tau) noexcept {
+  return kernelFrom(tau, kernelFactors(phase, psi, gamma));
 }
 
 KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes) {
@@ -167,14 +169,13 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
     const double gamma = gammaAt(ig * gS);
     std::vector<double> band(static_cast<std::size_t>(r_) * 4), rhs(static_cast<std::size_t>(r_));
     // The fit's sample points (3-point Gauss on both halves of every knot interval), their basis
-    // values and what kernel() computes there that does not depend on τ: the phase function and
-    // the path excess. Taken once per γ row instead of once per (γ, τ) node (the phase function,
-    // cos, tan per sample were most of the table's build); m below is then kernel()'s value bit for
-    // bit (the same expressions in the same order).
+    // values and what kernel() computes there that does not depend on τ (kernelFactors). Taken
+    // once per γ row instead of once per (γ, τ) node (the phase function, cos, tan per sample
+    // were most of the table's build); m below is then kernel()'s value bit for bit.
     const int nInt = basis.intervals();
     const auto nSamples = static_cast<std::size_t>(nInt) * 6;
-    std::vector<double> sw(nSamples), sp(nSamples), se(nSamples), sb(nSamples * 4);
-    std::vector<char> beyond(nSamples);
+    std::vector<double> sw(nSamples), sb(nSamples * 4);
+    std::vector<Factors> sf(nSamples);
     for (int j = 0; j < nInt; ++j) {
       const double a = basis.knot(j), b = basis.knot(j + 1);
       for (int sub = 0; sub < 2; ++sub) {
@@ -184,10 +185,7 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
           const double x = mid + half * kGL3x[g];
           sw[q] = half * kGL3w[g];
           basis.eval(j, x, sb.data() + 4 * q);
-          const double chi = x + gamma;
-          sp[q] = evalPhase(phase, std::cos(chi));
-          beyond[q] = chi >= kPi - 1e-12;
-          se[q] = beyond[q] ? 0.0 : std::max(std::cos(gamma) + std::sin(gamma) * std::tan(0.5 * chi) - 1.0, 0.0);
+          sf[q] = kernelFactors(phase, x, gamma);
         }
       }
     }
@@ -205,7 +203,7 @@ KernelTable::KernelTable(const Phase& phase) : nG_(gammaNodes()), nT_(kTauNodes)
           const auto q = static_cast<std::size_t>(j * 6 + sg);
           const double w = sw[q];
           const double* bv = sb.data() + 4 * q;
-          const double m = tau <= 0.0 ? sp[q] : beyond[q] ? 0.0 : std::exp(-tau * se[q]) * sp[q];
+          const double m = kernelFrom(tau, sf[q]);
           for (int i = 0; i < 4; ++i) {
             const std::size_t r = static_cast<std::size_t>(j + i);
             rhs[r] += w * bv[i] * m;

@@ -31,6 +31,7 @@
 
 #include <fogbeam/physics/medium.hpp>
 
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <vector>
@@ -116,6 +117,18 @@ class KernelTable {
   [[nodiscard]] std::size_t bytes() const noexcept { return coef_.size() * sizeof(float) + cut_.size() * sizeof(int); }
   /// M of the header, for tests.
   [[nodiscard]] static double kernel(const Phase& phase, double psi, double gamma, double tau) noexcept;
+  /// M's factors at (ψ, γ), none of which depends on τ: the phase function at χ = ψ + γ, the
+  /// path excess max(cos γ + sin γ tan(χ/2) − 1, 0) (0 beyond χ = π) and whether χ is there.
+  /// kernel() is exactly kernelFrom(τ, kernelFactors(ψ, γ)): a fit over many τ takes these once.
+  struct Factors {
+    double phase;
+    double excess;
+    bool beyond;
+  };
+  [[nodiscard]] static Factors kernelFactors(const Phase& phase, double psi, double gamma) noexcept;
+  [[nodiscard]] static double kernelFrom(double tau, const Factors& f) noexcept {
+    return tau <= 0.0 ? f.phase : f.beyond ? 0.0 : std::exp(-tau * f.excess) * f.phase;
+  }
 
  private:
   int nG_ = 0, nT_ = 0, r_ = 0;

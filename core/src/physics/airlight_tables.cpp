@@ -59,7 +59,6 @@ GMomentTable::GMomentTable(const Phase& phase, int nTheta, int nK, double kMax)
     nodeF[static_cast<std::size_t>(j)] = integrandGFactors(phase, th);
   }
   const std::size_t perCell = samples.size() / static_cast<std::size_t>(std::max(nTheta_ - 1, 1));
-  auto g = [](double k, const GFactors& f) { return k == 0.0 ? f.phase : std::exp(-k * f.exponent) * f.phase; };
   for (int i = 0; i < nK_; ++i) {
     const double u = static_cast<double>(i) / (nK_ - 1);
     const double k = k0_ * std::expm1(u * logSpan_);
@@ -69,7 +68,7 @@ GMomentTable::GMomentTable(const Phase& phase, int nTheta, int nK, double kMax)
     for (int j = 0; j < nTheta_; ++j) {
       if (j > 0) {
         for (std::size_t q = 0; q < perCell; ++q, ++smp) {
-          const double gw = g(k, smp->f) * smp->w;
+          const double gw = integrandGFrom(k, smp->f) * smp->w;
           t0 += gw;
           t1 += gw * smp->x;
           t2 += gw * smp->x * smp->x;
@@ -79,7 +78,7 @@ GMomentTable::GMomentTable(const Phase& phase, int nTheta, int nK, double kMax)
       cell[0] = t0;
       cell[1] = t1;
       cell[2] = t2;
-      cell[3] = g(k, nodeF[static_cast<std::size_t>(j)]);
+      cell[3] = integrandGFrom(k, nodeF[static_cast<std::size_t>(j)]);
     }
   }
 }

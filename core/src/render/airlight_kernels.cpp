@@ -92,10 +92,7 @@ std::shared_ptr<const IsoTable> IsoTable::build(const Phase& phase, int nK, int 
       // ∫ G dθ over the node interval (G is smooth there: the θ nodes are dense where it peaks).
       if (j > 0 && th > thPrev)
         sum += GL::integrate(
-            [&](double) {
-              const GFactors& f = factors[next++];
-              return k == 0.0 ? f.phase : std::exp(-k * f.exponent) * f.phase;
-            },
+            [&](double) { return integrandGFrom(k, factors[next++]); },
             thPrev, th);
       thPrev = th;
       row[j] = static_cast<float>(sum);

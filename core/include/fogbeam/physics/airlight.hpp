@@ -31,6 +31,7 @@
 #include <fogbeam/physics/profile.hpp>
 #include <fogbeam/util/result.hpp>
 
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -143,12 +144,16 @@ struct RayLampGeometry {
 [[nodiscard]] double integrandG(const Phase& phase, double k, double theta) noexcept;
 /// G's two factors at θ, neither of which depends on k: G(k, θ) = e^{−k · exponent} · phase with
 /// phase = p(−sin θ) and exponent = tan(π/4 + θ/2) (→ ∞ as θ → π/2). integrandG is exactly
-/// `k == 0 ? phase : std::exp(-k * exponent) * phase`, so a table over many k computes these once.
+/// integrandGFrom(k, integrandGFactors(phase, θ)), so a table over many k computes these once.
 struct GFactors {
   double phase;
   double exponent;
 };
 [[nodiscard]] GFactors integrandGFactors(const Phase& phase, double theta) noexcept;
+/// G(k, θ) from its factors at θ (k ≥ 0; G(0, θ) = phase, also where exponent is infinite).
+[[nodiscard]] inline double integrandGFrom(double k, const GFactors& f) noexcept {
+  return k == 0.0 ? f.phase : std::exp(-k * f.exponent) * f.phase;
+}
 
 /// The accurate method's cumulative G moments T_q(k, θ) = ∫_{−π/2}^{θ} θ'^q G(k, θ') dθ' for one
 /// phase function, in float, as the GPU path uploads them (docs/airlight.md, "GPU path"). The
