@@ -1131,6 +1131,84 @@ json againstPerRay(const AirlightImageEvaluator& reference, const Scene& scene, 
 // the visibility falls log-linearly from 150 m to 50 m (a new fog every frame) while the ego
 // lamps bend 1° further every 4 frames (a swivel about the vertical through the lamp); one
 // untimed frame first. Then the last frame against per ray.
+// The fog ladder (docs/airlight.md, "The fog ladder"): changesStage's fogs without the bending
+// (bending has no ladder), on an evaluator like the steady frames' (the ego lamps on view
+// tables, its own built for the first frame's fog) given the rungs of K_t = 1.2^m per metre
+// around the ramp, built first one by one (the service builds them in the background, nearest
+// first). Each frame reads the two rungs around its fog. The last frame against per ray and
+// against tables built at its own fog.
+json ladderRun(const Scene& still, const SurfaceBuffers& surface, unsigned threads, const BenchOptions& o, int n,
+               double steadyMs) {
+  constexpr double kRatio = 1.2;
+  FastPathOptions fast;
+  fast.view_table_step_deg = o.viewTableStepDeg;
+  auto pool = std::make_shared<ThreadPool>(threads);
+  auto sceneAt = [&](int f) {
+    Scene fs = still;
+    fs.fog.extinction_per_m = extinctionFromVisibility(150.0 * std::pow(50.0 / 150.0, static_cast<double>(f) / (n - 1)));
+    return fs;
+  };
+  const double lr = std::log(kRatio);
+  const int m0 = static_cast<int>(std::floor(std::log(sceneAt(0).fog.extinction_per_m) / lr));
+  const int m1 = static_cast<int>(std::ceil(std::log(sceneAt(n - 1).fog.extinction_per_m) / lr));
+  std::vector<std::shared_ptr<const FogTables>> rungs;
+  StageStats rungMs;
+  std::size_t bytes = 0;
+  for (int m = m0; m <= m1; ++m) {
+    Scene rs = still;
+    rs.fog.extinction_per_m = std::pow(kRatio, m);
+    const auto t0 = Clock::now();
+    auto r = AirlightImageEvaluator::buildFogTables(rs, fast, pool);
+    if (!r) return {{"note", r.error().message}};
+    rungMs.ms.push_back(msSince(t0));
+    bytes += fogTablesBytes(**r);
+    rungs.push_back(std::move(r).value());
+  }
+  const Scene first = sceneAt(0);
+  auto ev = AirlightImageEvaluator::build(first, AirlightMethod::Accurate, {}, pool, fast);
+  if (!ev) return {{"note", ev.error().message}};
+  AirlightImage img;
+  ev->evaluate(first, surface, SubsamplingOptions{}, img);  // untimed: its own tables
+  ev->setFogLadder(rungs, kRatio);
+  StageStats frames;
+  int blended = 0;
+  Scene last;
+  for (int f = 0; f < n; ++f) {
+    last = sceneAt(f);
+    const auto t0 = Clock::now();
+    if (Status st = ev->setFog(last.fog); !st) return {{"note", st.error().message}};
+    ev->evaluate(last, surface, SubsamplingOptions{}, img);
+    frames.ms.push_back(msSince(t0));
+    blended += img.fog_rungs == 2 ? 1 : 0;
+  }
+  json out = frames.toJson();
+  out["ratio"] = kRatio;
+  out["rungs"] = rungs.size();
+  out["rung_build"] = rungMs.toJson();
+  out["rung_mb"] = static_cast<double>(bytes) / 1e6 / static_cast<double>(rungs.size());
+  out["frames_blended"] = blended;
+  out["vs_steady_median"] = steadyMs > 0.0 ? frames.median() / steadyMs : 0.0;
+  out["vs_steady_worst"] = steadyMs > 0.0 ? frames.max() / steadyMs : 0.0;
+  auto reference = AirlightImageEvaluator::build(last, AirlightMethod::Accurate, {}, threads, FastPathOptions{});
+  auto exact = AirlightImageEvaluator::build(last, AirlightMethod::Accurate, {}, pool, fast);
+  if (!reference || !exact) return {{"note", !reference ? reference.error().message : exact.error().message}};
+  ThreadPool rpool(threads);
+  out["vs_per_ray"] = againstPerRay(*reference, last, surface, img, rpool, o, out["threshold_cd_m2"]);
+  // Against tables at the last frame's fog, every pixel above the same threshold.
+  AirlightImage at;
+  exact->evaluate(last, surface, SubsamplingOptions{}, at);
+  const std::vector<double> got = luminances(img.rgb), want = luminances(at.rgb);
+  const double floor = out["threshold_cd_m2"].get<double>();
+  std::vector<double> g, w;
+  for (std::size_t k = 0; k < want.size(); ++k)
+    if (want[k] > floor) {
+      g.push_back(got[k]);
+      w.push_back(want[k]);
+    }
+  out["vs_tables_at_fog"] = relativeErrors(g, w).toJson();
+  return out;
+}
+
 json changesStage(const Scene& still, const SurfaceBuffers& surface, unsigned threads, const BenchOptions& o,
                   const TrafficRun& base) {
   json out;
@@ -1185,6 +1263,7 @@ json changesStage(const Scene& still, const SurfaceBuffers& surface, unsigned th
     rebuilt.ms.push_back(msSince(t0));
   }
   out["rebuilt_each_frame"] = rebuilt.toJson();
+  out["ladder"] = ladderRun(still, surface, threads, o, n, steadyStats.median());
   json c = stats.toJson();
   const double steadyMs = steadyStats.median();
   c["vs_steady_median"] = steadyMs > 0.0 ? stats.median() / steadyMs : 0.0;
@@ -1322,6 +1401,21 @@ void printTraffic(const json& t) {
   std::printf("  %-30s %.0f sampled, %.0f kept a frame (median)\n", "  spokes", ch["spokes_sampled_median"].get<double>(),
               ch["spokes_kept_median"].get<double>());
   printError("  changing vs per ray", ch["vs_per_ray"]);
+  const json& l = c["ladder"];
+  if (l.contains("note")) {
+    std::printf("  fog ladder: %s\n", l["note"].get<std::string>().c_str());
+    return;
+  }
+  std::printf("fog ladder (the same fogs without bending; rungs K_t = %.1f^m /m, built first; each frame reads the "
+              "two around its fog)\n",
+              l["ratio"].get<double>());
+  std::snprintf(note, sizeof note, "  %zu rungs of %.1f MB", l["rungs"].get<std::size_t>(), l["rung_mb"].get<double>());
+  printStage("rung build, one at a time", l["rung_build"], note);
+  std::snprintf(note, sizeof note, "  %.1f x the steady frame (median), %.1f x (worst); %d read two rungs",
+                l["vs_steady_median"].get<double>(), l["vs_steady_worst"].get<double>(), l["frames_blended"].get<int>());
+  printStage("changing fog, two rungs", l, note);
+  printError("  ladder vs per ray", l["vs_per_ray"]);
+  printError("  ladder vs tables at its fog", l["vs_tables_at_fog"]);
 }
 
 /// Issue 7's additions beyond the paper, each at its own size.

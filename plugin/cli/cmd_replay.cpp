@@ -30,6 +30,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -83,6 +84,11 @@ void paste(const png::RgbImage& src, png::RgbImage& sheet, int x0, int y0, int w
 /// the contact sheet, a frames.csv row (and, with glow or glare on, effects_lamps.csv rows), and
 /// the figures of the summary and timing.json. One channel; the bookkeeping's frame number is
 /// the frame index k, its simulation time start + k / fps.
+/// How a frame's ego lamps were evaluated (frames.csv's `tables`): "pending" (per pixel while
+/// their tables are built), "ladder" (from rungs of the fog ladder), "tables" (tables built for
+/// the frame's fog and bending, or none needed: the GPU airlight).
+const char* tablesOf(const plugin::RenderedFrame& f) { return f.pending ? "pending" : f.fog_rungs > 0 ? "ladder" : "tables"; }
+
 class FileSink final : public plugin::FrameSink {
  public:
   FileSink(const ReplayOptions& o, bool effects) : o_(o), effects_(effects) {
@@ -93,7 +99,7 @@ class FileSink final : public plugin::FrameSink {
       lampRows_ << "frame,t_s,lamp,distance_m,optical_distance,intensity_cd,eye_illuminance_lx,glow_source_cd,"
                    "glow_peak_cd_m2\n";
     }
-    timeline_ << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px,exposure_ev"
+    timeline_ << "frame,t_s,lights,traffic,total_ms,table_wait_ms,surface_ms,airlight_ms,evaluated_px,exposure_ev,tables"
               << (effects_ ? ",eye_illuminance_lx,veiling_luminance_cd_m2,glow_ms,glare_ms" : "") << "\n";
   }
 
@@ -135,10 +141,11 @@ class FileSink final : public plugin::FrameSink {
     waitMs.push_back(tm.table_wait_ms);
     surfaceMs.push_back(tm.surface_ms);
     airMs.push_back(tm.airlight_ms);
+    ++tableFrames[tablesOf(frame)];
     writeMs.push_back(std::chrono::duration<double, std::milli>(c - b).count());
     timeline_ << k_ << "," << t_ << "," << plugin::lightNames(frame.inputs.lights) << "," << frame.inputs.traffic_count
               << "," << tm.total_ms << "," << tm.table_wait_ms << "," << tm.surface_ms << "," << tm.airlight_ms << ","
-              << frame.airlight_evaluated << "," << ev;
+              << frame.airlight_evaluated << "," << ev << "," << tablesOf(frame);
     if (effects_) {
       const LampEffectsReport& fx = frame.effects;
       eyeLux.push_back(fx.eye_illuminance_lx);
@@ -166,6 +173,7 @@ class FileSink final : public plugin::FrameSink {
   // and with glow or glare on lx, cd/m², ms.
   std::vector<double> totalMs, surfaceMs, airMs, waitMs, writeMs, glowMs, glareMs, eyeLux, veiling;
   std::vector<double> intervalMs;  ///< ms between successive frames handed to the sink (frames − 1)
+  std::map<std::string, std::size_t> tableFrames;  ///< frames by tablesOf()
   std::vector<png::RgbImage> thumbs;  ///< the PNG images, for the contact sheet
   std::vector<double> exposureEv;     ///< each PNG's exposure, EV
 
@@ -300,6 +308,9 @@ int runReplay(const ReplayOptions& o) {
   std::printf("  of which        table builds (fog/rig changes) median %.1f ms, max %.1f ms; surface median %.1f ms; "
               "airlight median %.1f ms\n",
               percentile(sink.waitMs, 0.5), percentile(sink.waitMs, 1.0), percentile(sink.surfaceMs, 0.5), percentile(sink.airMs, 0.5));
+  // Which frames read tables (built for their fog, or the fog ladder's) and which went per pixel.
+  std::printf("  ego lamps       %zu frames from tables, %zu from the fog ladder, %zu per pixel (tables pending)\n",
+              sink.tableFrames["tables"], sink.tableFrames["ladder"], sink.tableFrames["pending"]);
   if (effects) {
     // Eye illuminance: Σ over the visible lamps of I e^{−K_t R} / R²; veiling luminance: the
     // CIE 146 stray light at the image centre (0 without [glare]).
@@ -319,6 +330,8 @@ int runReplay(const ReplayOptions& o) {
        << "\", \"wall_s\": " << wall << ", \"frame_ms_median\": " << percentile(sink.totalMs, 0.5)
        << ", \"frame_ms_p95\": " << percentile(sink.totalMs, 0.95) << ", \"table_ms_max\": " << percentile(sink.waitMs, 1.0)
        << ", \"interval_ms_median\": " << percentile(sink.intervalMs, 0.5)
+       << ", \"frames_tables\": " << sink.tableFrames["tables"] << ", \"frames_ladder\": " << sink.tableFrames["ladder"]
+       << ", \"frames_pending\": " << sink.tableFrames["pending"]
        << ", \"overlap_frames\": " << (overlapped ? "true" : "false");
   if (effects) {
     json << ", \"glow_ms_median\": " << percentile(sink.glowMs, 0.5) << ", \"glare_ms_median\": " << percentile(sink.glareMs, 0.5)

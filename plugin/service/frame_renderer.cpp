@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <future>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -58,6 +59,12 @@ VehiclePose poseOf(const Camera& host, const Camera& vehicleCamera) {
 /// What the tables depend on besides the rig: the fog and the ego's bending angle. Fogs compare
 /// by the medium they describe (a visibility and the equivalent extinction are equal); tables
 /// for one angle serve angles within [ego] bending_tolerance_deg of it (serves()).
+/// The extinction coefficient an environment message describes, 1/m.
+double ktOf(const ipc::Environment& e) {
+  return e.visibility_m > 0.0f ? extinctionFromVisibility(static_cast<double>(e.visibility_m))
+                               : static_cast<double>(e.extinction_per_m);
+}
+
 struct TableKey {
   ipc::Environment fog;
   double bendingDeg = 0.0;
@@ -66,10 +73,7 @@ struct TableKey {
   [[nodiscard]] bool sameFog(const TableKey& o) const {
     const ipc::Environment& a = fog;
     const ipc::Environment& b = o.fog;
-    auto kt = [](const ipc::Environment& e) {
-      return e.visibility_m > 0.0f ? extinctionFromVisibility(static_cast<double>(e.visibility_m))
-                                   : static_cast<double>(e.extinction_per_m);
-    };
+    auto kt = [](const ipc::Environment& e) { return ktOf(e); };
     const bool phaseSame = a.phase == b.phase && (a.phase != ipc::PhaseCode::HenyeyGreenstein || a.g == b.g) &&
                            (a.phase != ipc::PhaseCode::FogMie || a.droplet_diameter_um == b.droplet_diameter_um);
     // Relative 1e-6 in K_t: the float of a message and the double of a config file agree.
@@ -82,6 +86,15 @@ struct TableKey {
     return sameFog(o) && std::abs(bendingDeg - o.bendingDeg) <= toleranceDeg;
   }
 };
+
+/// The fog ladder's base of a key: its fog with K_t set to 1 /m (what the rungs share besides
+/// their K_t) and its bending.
+TableKey ladderBase(const TableKey& k) {
+  TableKey b = k;
+  b.fog.visibility_m = 0.0f;
+  b.fog.extinction_per_m = 1.0f;
+  return b;
+}
 
 std::uint32_t formatCode(const std::string& f) {
   if (f == "rgba16f-linear") return FOGBEAM_FORMAT_RGBA16F_LINEAR;
@@ -219,6 +232,29 @@ struct ChannelRenderer::Impl {
   std::future<Result<AirlightImageEvaluator>> building;  ///< tables for `next`, off the frame thread
   TableKey next;
 
+  /// The fog ladder ([render] fog_ladder_ratio; docs/service.md, "The fog ladder"): rungs of the
+  /// ego lamps' view tables at K_t = ladderRatio^m per metre (by m) for the fog (its K_t aside)
+  /// and bending of rungBase, built one at a time in the background (rungBuilding: rung
+  /// rungBuildIndex for rungBuildBase, started at frame rungStart) and taken as table builds
+  /// are. rungsVersion counts changes of the set; finish() gives the evaluator a new set
+  /// (evalRungsVersion: the one it has).
+  double ladderRatio = 0.0;
+  std::map<int, std::shared_ptr<const FogTables>> rungs;
+  TableKey rungBase;
+  bool rungBaseSet = false;
+  std::future<Result<std::shared_ptr<const FogTables>>> rungBuilding;
+  int rungBuildIndex = 0;
+  TableKey rungBuildBase;
+  std::int64_t rungStart = 0;
+  std::uint64_t rungsVersion = 0, evalRungsVersion = ~std::uint64_t{0};
+  /// Frames in a row whose K_t differs from the previous frame's, and its direction (+1, −1):
+  /// rungs are built only while the fog keeps changing, ahead in its direction.
+  int fogChanging = 0, fogTrend = 0;
+  double lastKt = 0.0;
+  double lastRungFrames = 1.0;  ///< frames the last rung took from its start to being taken
+  std::vector<char> lastLampOn;  ///< the previous frame's lamps on (a rung is merged for them)
+  std::uint64_t ladderMisses = 0;  ///< ladder frames the evaluator could not serve (per pixel instead)
+
   AirlightImage air, trafficAir;
 
   /// A frame between begin() and finish(): what stages 1–3 decided and made, for stages 4–6.
@@ -226,6 +262,11 @@ struct ChannelRenderer::Impl {
   struct Begun {
     TableKey key;             ///< the fog and bending the frame shows
     bool useTables = false;   ///< the tables' evaluator serves the world and ego lamps
+    /// The tables' evaluator reads two rungs of the fog ladder (`rungs`, set `rungsVersion`)
+    /// for the ego lamps (useTables is then true).
+    bool ladder = false;
+    std::vector<std::shared_ptr<const FogTables>> rungs;
+    std::uint64_t rungsVersion = 0;
     bool pending = false;     ///< RenderedFrame::pending
     /// A table build this frame took (stage 1): it replaces `eval` when the frame's finish()
     /// starts, after the previous frame's airlight has read the old tables.
@@ -283,6 +324,8 @@ struct ChannelRenderer::Impl {
   // The stages of render(), in order (defined below, each with what it does).
   [[nodiscard]] TableKey wantedTables(const ipc::SimSnapshot& state) const;
   [[nodiscard]] Status updateTables(const VehiclePose& pose, const TableKey& want, bool wait, Begun& b);
+  [[nodiscard]] Status updateLadder(const VehiclePose& pose, const TableKey& want, bool wait, bool served, Begun& b);
+  void startRung(const VehiclePose& pose, int index);
   void litLamps(std::uint32_t lights, Begun& b);
   [[nodiscard]] Status setEvaluatorLamps(const Begun& b);
   void startBuild(const VehiclePose& pose, const TableKey& want);
@@ -324,6 +367,7 @@ struct ChannelRenderer::Impl {
 ChannelRenderer::ChannelRenderer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 ChannelRenderer::~ChannelRenderer() {
   if (impl_ && impl_->building.valid()) impl_->building.wait();
+  if (impl_ && impl_->rungBuilding.valid()) impl_->rungBuilding.wait();
 }
 
 const ChannelConfig& ChannelRenderer::channel() const { return impl_->channel; }
@@ -352,6 +396,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->egoPoints = expandRig(config.ego);
   for (const auto& [cls, rig] : config.traffic) impl->trafficPoints.emplace(&rig, expandRig(rig));
   impl->perPixelPending = config.pending_tables == "per-pixel";
+  impl->ladderRatio = impl->perPixelPending ? config.fog_ladder_ratio : 0.0;
   impl->framePool = std::make_shared<ThreadPool>(config.threads);
   if (config.effects.render.airlight == AirlightDevice::Gpu) {
     if (!gl) {
@@ -443,7 +488,9 @@ Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableK
     wantHeld = frameIndex > 1 && lastWant.serves(want, tol) ? wantHeld + 1 : 1;
     lastWant = want;
     b.useTables = tablesBuilt && current.serves(want, tol);
+    if (Status s = updateLadder(pose, want, wait, b.useTables, b); !s) return s;
     if (!b.useTables && !building.valid() && wantHeld >= 2) startBuild(pose, want);
+    if (b.ladder) b.useTables = true;
     return Ok{};
   }
   // pending_tables = "previous". A finished background build replaces the tables in use
@@ -472,6 +519,124 @@ Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableK
   return Ok{};
 }
 
+Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableKey& want, bool wait, bool served,
+                                           Begun& b) {
+  // A frame whose fog the tables do not serve reads the two rungs around its K_t when both
+  // exist for its fog's other fields and bending. Rungs are built one at a time in the
+  // background, when frames are cheap: while tables serve the fog, the rungs nearest it on both
+  // sides, up to fog_ladder_rungs; while the fog keeps changing on the ladder (two frames in a
+  // row or more: a ramp, not a step, which the exact build after it serves), around where it
+  // is heading. Frames off the ladder (per pixel) need the cores: no rung is started then. Taken as table builds are, free-running when done, lock-step and
+  // replay fog_ladder_adopt_frames after they started (so that runs repeat).
+  b.ladder = false;
+  if (ladderRatio <= 1.0) return Ok{};
+  if (rungBuilding.valid()) {
+    const bool take = wait ? frameIndex >= rungStart + config->fog_ladder_adopt_frames
+                           : rungBuilding.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+    if (take) {
+      lastRungFrames = static_cast<double>(frameIndex - rungStart);
+      auto built = rungBuilding.get();
+      if (!built) return built.error();
+      if (rungBaseSet && rungBuildBase == rungBase) {
+        rungs[rungBuildIndex] = std::move(built).value();
+        ++rungsVersion;
+      }
+    }
+  }
+  // Another fog (its K_t aside) or a bending angle beyond the tolerance: a new ladder.
+  const TableKey base = ladderBase(want);
+  if (!rungBaseSet || !rungBase.serves(base, config->bending_tolerance_deg)) {
+    if (!rungs.empty()) ++rungsVersion;
+    rungs.clear();
+    rungBase = base;
+    rungBaseSet = true;
+  }
+  const double kt = ktOf(want.fog);
+  // ln K_t's change over the last frame, while it changes the same way.
+  double step = 0.0;
+  if (lastKt > 0.0 && std::abs(kt - lastKt) > 1e-6 * kt) {
+    const int trend = kt > lastKt ? 1 : -1;
+    fogChanging = trend == fogTrend ? fogChanging + 1 : 1;
+    fogTrend = trend;
+    step = std::log(kt / lastKt);
+  } else {
+    fogChanging = 0;
+  }
+  lastKt = kt;
+  const double lr = std::log(ladderRatio);
+  const int m = static_cast<int>(std::floor(std::log(kt) / lr));
+  const bool onLadder = rungs.count(m) != 0 && rungs.count(m + 1) != 0;
+  if (!served && onLadder && fogChanging >= 2 && !rungBuilding.valid() && !building.valid()) {
+    // Where the fog will be when this build is taken, at its present rate: table_adopt frames
+    // ahead (lock-step, replay), or as many frames as the last rung took (free-running). The
+    // rungs around that fog first (nearer first), the next one beyond it, then those around the
+    // fog now.
+    const double lead = wait ? static_cast<double>(config->fog_ladder_adopt_frames) : std::max(1.0, lastRungFrames);
+    const double ahead = std::log(kt) + lead * step;
+    const int a = static_cast<int>(std::floor(ahead / lr));
+    const bool upperFirst = ahead - a * lr > 0.5 * lr;
+    const std::array<int, 5> order{upperFirst ? a + 1 : a, upperFirst ? a : a + 1, fogTrend > 0 ? a + 2 : a - 1, m,
+                                   m + 1};
+    for (int c : order)
+      if (rungs.count(c) == 0) {
+        startRung(pose, c);
+        break;
+      }
+  } else if (served && !rungBuilding.valid() && !building.valid() &&
+             rungs.size() < static_cast<std::size_t>(config->fog_ladder_rungs)) {
+    // The tables serve the fog (a steady frame costs a few ms): the idle cores build the rungs
+    // nearest the fog, on both sides, so that the next change of fog starts on the ladder.
+    const double x = std::log(kt) / lr;  // the fog in rung units
+    int best = m;
+    double bestDistance = std::numeric_limits<double>::infinity();
+    for (int c = m - config->fog_ladder_rungs; c <= m + 1 + config->fog_ladder_rungs; ++c) {
+      const double d = std::abs(static_cast<double>(c) - x);
+      if (rungs.count(c) == 0 && d < bestDistance) {
+        best = c;
+        bestDistance = d;
+      }
+    }
+    // Only within the fog_ladder_rungs nearest rungs (a farther one would be dropped at once).
+    std::size_t nearer = 0;
+    for (const auto& [index, rung] : rungs) nearer += std::abs(static_cast<double>(index) - x) < bestDistance ? 1u : 0u;
+    if (nearer < static_cast<std::size_t>(config->fog_ladder_rungs)) startRung(pose, best);
+  }
+  // At most fog_ladder_rungs, those furthest from the fog dropped.
+  while (rungs.size() > static_cast<std::size_t>(config->fog_ladder_rungs)) {
+    const auto lowest = rungs.begin();
+    const auto highest = std::prev(rungs.end());
+    rungs.erase(m - lowest->first > highest->first - m ? lowest : highest);
+    ++rungsVersion;
+  }
+  if (served || !onLadder) return Ok{};
+  b.ladder = true;
+  b.rungs.clear();
+  for (const auto& [index, rung] : rungs) b.rungs.push_back(rung);
+  b.rungsVersion = rungsVersion;
+  if (!tablesBuilt) {
+    // No tables' evaluator yet (the fog has changed since the start): one without tables of its
+    // own, which reads the rungs (its lamps and pool; cheap).
+    auto e = AirlightImageEvaluator::build(sceneFor(pose, rungBase), method, {}, config->threads, fast);
+    if (!e) return e.error();
+    b.adopt = std::make_unique<AirlightImageEvaluator>(std::move(e).value());
+    tablesBuilt = true;
+  }
+  return Ok{};
+}
+
+void ChannelRenderer::Impl::startRung(const VehiclePose& pose, int index) {
+  TableKey key = rungBase;
+  key.fog.extinction_per_m = static_cast<float>(std::pow(ladderRatio, index));
+  rungBuildIndex = index;
+  rungBuildBase = rungBase;
+  rungStart = frameIndex;
+  Scene scene = sceneFor(pose, key);
+  std::vector<char> on = lastLampOn.size() == scene.lamps.size() ? lastLampOn : std::vector<char>{};
+  rungBuilding = std::async(std::launch::async, [this, scene = std::move(scene), on = std::move(on)] {
+    return AirlightImageEvaluator::buildFogTables(scene, fast, std::make_shared<ThreadPool>(config->threads), on);
+  });
+}
+
 void ChannelRenderer::Impl::litLamps(std::uint32_t lights, Begun& b) {
   // b.scene holds every world lamp and every ego point lamp, the evaluator's view tables being
   // per lamp: those that are on go to b.lit (world lamps always are), and b.lampOn says which
@@ -486,6 +651,7 @@ void ChannelRenderer::Impl::litLamps(std::uint32_t lights, Begun& b) {
     b.lampOn[i] = on ? 1 : 0;
     if (on) b.lit.lamps.push_back(scene.lamps[i]);
   }
+  lastLampOn = b.lampOn;
 }
 
 Status ChannelRenderer::Impl::setEvaluatorLamps(const Begun& b) {
@@ -493,6 +659,13 @@ Status ChannelRenderer::Impl::setEvaluatorLamps(const Begun& b) {
   // switched off in it, not removed (this order: poses before enable bits). A frame without
   // tables (pending) leaves it as it is: its tables are for another key.
   if (!b.useTables) return Ok{};
+  // The ladder's rungs (a new set), and the frame's fog: the tables' own, or between two rungs.
+  if (b.ladder && b.rungsVersion != evalRungsVersion) {
+    // Rungs' K_t are floats (ipc::Environment): a little slack on the ratio.
+    eval->setFogLadder(b.rungs, ladderRatio * (1.0 + 1e-6));
+    evalRungsVersion = b.rungsVersion;
+  }
+  if (Status s = eval->setFog(b.scene.fog); !s) return s;
   if (Status s = eval->setLampPoses(b.scene); !s) return s;
   for (std::size_t i = 0; i < b.lampOn.size(); ++i) eval->setLampEnabled(i, b.lampOn[i] != 0);
   return Ok{};
@@ -552,7 +725,20 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
     out.airlight_evaluated = air.evaluated;
     return Ok{};
   }
-  if (!b.useTables) {
+  bool perPixel = !b.useTables;
+  if (b.ladder && !eval->viewTablesReady(scene.camera)) {
+    // The rungs do not fit this frame (which updateLadder's choice should exclude): per pixel,
+    // never a build in the frame. Counted; logged at most every 10 s.
+    perPixel = true;
+    ++ladderMisses;
+    static std::atomic<std::int64_t> lastLog{0};
+    const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
+    std::int64_t last = lastLog.load();
+    if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
+      spdlog::warn("render: the fog ladder's rungs did not fit {} frame(s); those went per pixel", ladderMisses);
+  }
+  out.fog_rungs = 0;
+  if (perPixel) {
     // Tables pending ([render] pending_tables = "per-pixel"): the world and ego lamps that are
     // on, the ego's as lamps that move relative to the eye (the pencil, maps or per ray:
     // [render] moving_lamps), in this frame's fog and bending; traffic below, as in frames
@@ -571,6 +757,7 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
   } else {
     // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
     eval->evaluate(scene, *surf, subsampling, air);
+    out.fog_rungs = air.fog_rungs;
   }
   out.airlight_evaluated = air.evaluated;
   if (!traffic.lamps.empty()) {
@@ -672,6 +859,11 @@ Status ChannelRenderer::Impl::beginFrame(const ipc::SimSnapshot& state, ipc::Clo
   // (Tables serve it when its bending angle is within bending_tolerance_deg of theirs: then the
   // frame shows theirs, the evaluator's lamps keeping the poses its tables were built for.)
   b.key = gpuAirlight || (perPixelPending && !b.useTables) ? want : current;
+  if (b.ladder) {
+    // Between two rungs: the wanted fog, the rungs' bending (within the tolerance of the wanted).
+    b.key = want;
+    b.key.bendingDeg = rungBase.bendingDeg;
+  }
 
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and
   // bending; `lit` = the lamps that are on (world, ego by light bits, traffic), for the surface
@@ -749,7 +941,10 @@ Status ChannelRenderer::Impl::beginFrame(const ipc::SimSnapshot& state, ipc::Clo
 Status ChannelRenderer::Impl::finishFrame(Begun& b, RenderedFrame& out) {
   const auto t0 = Clock::now();
   // A build the frame took in stage 1 replaces the tables now: the frame before it is done.
-  if (b.adopt) eval = std::move(b.adopt);
+  if (b.adopt) {
+    eval = std::move(b.adopt);
+    evalRungsVersion = ~std::uint64_t{0};
+  }
   out.timings.table_wait_ms = b.tableWaitMs;
   out.pending = b.pending;
 

@@ -57,6 +57,9 @@ constexpr std::array kRenderKeys{
     KeySpec{"table_cache"},
     KeySpec{"pending_tables"},
     KeySpec{"table_adopt_frames"},
+    KeySpec{"fog_ladder_ratio"},
+    KeySpec{"fog_ladder_rungs"},
+    KeySpec{"fog_ladder_adopt_frames"},
     KeySpec{"overlap_frames"},
 };
 constexpr std::array kTimingKeys{
@@ -254,6 +257,13 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     const std::array<std::string_view, 2> pending{"per-pixel", "previous"};
     c.pending_tables = s.choice("pending_tables", pending, c.pending_tables);
     c.table_adopt_frames = static_cast<int>(s.integer("table_adopt_frames", 1, 100000, c.table_adopt_frames));
+    c.fog_ladder_ratio = s.number("fog_ladder_ratio", Range{0.0, 2.0}, c.fog_ladder_ratio);
+    if (c.fog_ladder_ratio != 0.0 && c.fog_ladder_ratio < 1.05)
+      s.failAt(*s.find("fog_ladder_ratio"), "fog_ladder_ratio",
+               "expected 0 (off) or a ratio in [1.05, 2], found " + std::to_string(c.fog_ladder_ratio));
+    c.fog_ladder_rungs = static_cast<int>(s.integer("fog_ladder_rungs", 2, 64, c.fog_ladder_rungs));
+    c.fog_ladder_adopt_frames =
+        static_cast<int>(s.integer("fog_ladder_adopt_frames", 1, 100000, c.fog_ladder_adopt_frames));
     const std::array<std::string_view, 3> overlap{"auto", "on", "off"};
     c.overlap_frames = s.choice("overlap_frames", overlap, c.overlap_frames);
   }
@@ -556,6 +566,8 @@ std::string toToml(const ServiceConfig& c) {
     << "\nsurface = " << quoted(c.surface)
     << "\nthreads = " << c.threads << "\ntable_cache = " << quoted(c.table_cache)
     << "\npending_tables = " << quoted(c.pending_tables) << "\ntable_adopt_frames = " << c.table_adopt_frames
+    << "\nfog_ladder_ratio = " << num(c.fog_ladder_ratio) << "\nfog_ladder_rungs = " << c.fog_ladder_rungs
+    << "\nfog_ladder_adopt_frames = " << c.fog_ladder_adopt_frames
     << "\noverlap_frames = " << quoted(c.overlap_frames) << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
     << "\ngpu_pieces = " << c.effects.render.gpu_pieces << "\n";
   o << "\n[glow]\nenabled = " << flag(c.effects.glow.enabled) << "\nmodel = \"" << toString(c.effects.glow.model)

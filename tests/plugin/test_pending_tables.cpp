@@ -222,6 +222,60 @@ TEST(PendingTables, BendingAtAnyAngle) {
   EXPECT_LT(jitterP95, 0.01);
 }
 
+// The fog ladder ([render] fog_ladder_ratio, 1.2 by default; docs/service.md, "The fog ladder"):
+// while the 80 m tables serve, the idle frames build rungs around 80 m (one a frame here:
+// fog_ladder_adopt_frames = 1); a ramp to 50 m afterwards (a new fog every frame) reads the two
+// rungs around each frame's fog and is never pending; its last frame is within 1 % (p95) of a
+// renderer whose tables are for that fog; the run repeats byte for byte (lock-step).
+TEST(PendingTables, AFogRampReadsTheFogLadder) {
+  const std::vector<std::string> settings{"render.table_adopt_frames=1", "render.fog_ladder_adopt_frames=1"};
+  constexpr int kSteady = 12, kRamp = 12;
+  const float last = 50.0f;
+  auto run = [&](std::vector<RenderedFrame>& frames) {
+    const ServiceConfig cfg = configWith(settings);
+    auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+    ASSERT_TRUE(r) << r.error().message;
+    frames.resize(kSteady + kRamp);
+    for (int k = 0; k < kSteady + kRamp; ++k) {
+      const double t = k < kSteady ? 0.0 : static_cast<double>(k - kSteady + 1) / kRamp;
+      const auto v = static_cast<float>(80.0 * std::pow(static_cast<double>(last) / 80.0, t));
+      ASSERT_TRUE((*r)->render(stateWith(k + 1 == kSteady + kRamp ? last : v), ipc::Clock::now(), true, frames[static_cast<std::size_t>(k)]));
+    }
+  };
+  std::vector<RenderedFrame> a, b;
+  run(a);
+  int ladder = 0;
+  for (int k = kSteady; k < kSteady + kRamp; ++k) {
+    const RenderedFrame& f = a[static_cast<std::size_t>(k)];
+    EXPECT_FALSE(f.pending) << "ramp frame " << k - kSteady;
+    EXPECT_EQ(f.fog_rungs, 2) << "ramp frame " << k - kSteady;
+    ladder += f.fog_rungs == 2 ? 1 : 0;
+  }
+  EXPECT_FALSE(a[kSteady - 1].pending);
+  EXPECT_EQ(a[kSteady - 1].fog_rungs, 0);  // the steady frames read the 80 m tables
+  // The last ramp frame (50 m) against 50 m tables.
+  std::vector<std::string> at50 = settings;
+  at50.push_back("fog.visibility_m=50");
+  const ServiceConfig cfg50 = configWith(at50);
+  auto r50 = ChannelRenderer::create(cfg50, 0, worldOf(cfg50), nullptr);
+  ASSERT_TRUE(r50) << r50.error().message;
+  RenderedFrame h;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE((*r50)->render(stateWith(0.0f), ipc::Clock::now(), true, h));
+  ASSERT_FALSE(h.pending);
+  const double p95 = p95Relative(luminance(a.back().layers.airlight), luminance(h.layers.airlight));
+  const double p95Steady = p95Relative(luminance(a[kSteady - 1].layers.airlight), luminance(h.layers.airlight));
+  std::printf("fog ramp 80 -> 50 m: %d of %d frames from two rungs; the 50 m frame against 50 m tables p95 %.2e "
+              "(the 80 m frame: %.2e)\n",
+              ladder, kRamp, p95, p95Steady);
+  EXPECT_LT(p95, 0.01);
+  EXPECT_GT(p95Steady, 0.1);
+  run(b);
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].layers.airlight, b[k].layers.airlight) << "frame " << k;
+    EXPECT_EQ(a[k].packed, b[k].packed) << "frame " << k;
+  }
+}
+
 TEST(PendingTables, PreviousWaitsForTheFirstTables) {
   const ServiceConfig cfg = configWith({"render.pending_tables=\"previous\""});
   auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);

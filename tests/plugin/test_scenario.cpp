@@ -166,6 +166,23 @@ position_m = [0, 0, 0]
   EXPECT_GT(def.fog.visibility_m + def.fog.extinction_per_m, 0.0f);
 }
 
+// Every shipped scenario loads; fog_bank's fog follows its keys (log-linear between them).
+TEST(Scenario, ShippedScenariosLoad) {
+  int count = 0;
+  for (const auto& e : std::filesystem::directory_iterator(std::string(FOGBEAM_CONFIG_DIR) + "/scenarios")) {
+    if (e.path().extension() != ".toml") continue;
+    auto s = loadScenario(e.path().string());
+    EXPECT_TRUE(s) << e.path() << ": " << (s ? "" : s.error().message);
+    ++count;
+  }
+  EXPECT_GE(count, 5);
+  auto bank = loadScenario(std::string(FOGBEAM_CONFIG_DIR) + "/scenarios/fog_bank.toml");
+  ASSERT_TRUE(bank) << bank.error().message;
+  EXPECT_FLOAT_EQ(evaluate(*bank, 2.0).environment.visibility_m, 200.0f);
+  EXPECT_NEAR(evaluate(*bank, 6.5).environment.visibility_m, 100.0f, 0.01f);  // 200 · (50/200)^0.5
+  EXPECT_FLOAT_EQ(evaluate(*bank, 10.0).environment.visibility_m, 50.0f);
+}
+
 TEST(Scenario, StateEncodesToMessagesThatDecode) {
   const Scenario s = parse(R"(
 [ego]

@@ -349,20 +349,36 @@ TEST(AirlightImage, AFogChangeKeepsTheSpokesOfLampsFixedToTheEye) {
 // that changes every frame could keep to table frames: docs/airlight.md, "What is left"): the
 // ego's low beams and the street lamp at K_t, against tables built at K_t itself, for brackets
 // K_t / √ρ and K_t √ρ (the wanted fog at the bracket's geometric middle, where a blend is worst),
-// blended linearly and geometrically in ln K_t. Measured, not a product path yet.
-TEST(AirlightImage, FogBetweenTwoTabulatedFogs) {
+// blended linearly and geometrically in ln K_t: images blended offline (the product's path, the
+// fog ladder, is FogLadderReadsTwoRungsAroundTheFog).
+// nightRoad's ego low beams and street lamp at 128×72 with their surfaces, and the options of
+// every image's tables: at 0.5° (a quarter of the directions of 0.25°), the same for all, so that
+// only the fog differs (the blend's error is the fog's, not the tables').
+struct EgoLampsAndStreetLamp {
   Scene scene = nightRoad(128, 72);
-  scene.lamps = {scene.lamps[0], scene.lamps[1], scene.lamps[4]};
   SurfaceBuffers surf;
-  renderSurfacesCpu(scene, surf);
-  const double kt = scene.fog.extinction_per_m;
-  // Every image through tables of the same options, so that only the fog differs: at 0.5° (a
-  // quarter of the directions of 0.25°; the blend's error is the fog's, not the tables').
   FastPathOptions fast = scaledFastPath();
-  fast.view_table_step_deg = std::max(fast.view_table_step_deg, 0.5);
-  auto imageAt = [&](double k, AirlightImage& img) {
+  EgoLampsAndStreetLamp() {
+    scene.lamps = {scene.lamps[0], scene.lamps[1], scene.lamps[4]};
+    renderSurfacesCpu(scene, surf);
+    fast.view_table_step_deg = std::max(fast.view_table_step_deg, 0.5);
+  }
+  /// The scene in fog of extinction k (1/m).
+  [[nodiscard]] Scene at(double k) const {
     Scene s = scene;
     s.fog.extinction_per_m = k;
+    return s;
+  }
+};
+
+TEST(AirlightImage, FogBetweenTwoTabulatedFogs) {
+  const EgoLampsAndStreetLamp rig;
+  const Scene& scene = rig.scene;
+  const SurfaceBuffers& surf = rig.surf;
+  const FastPathOptions& fast = rig.fast;
+  const double kt = scene.fog.extinction_per_m;
+  auto imageAt = [&](double k, AirlightImage& img) {
+    const Scene s = rig.at(k);
     auto ev = AirlightImageEvaluator::build(s, AirlightMethod::Accurate, {}, 0, fast);
     ASSERT_TRUE(ev.has_value());
     ev->evaluate(s, surf, SubsamplingOptions{.full = true}, img);
@@ -394,6 +410,92 @@ TEST(AirlightImage, FogBetweenTwoTabulatedFogs) {
       EXPECT_LE(geoP95, 2e-3);
     }
   }
+}
+
+// The fog ladder as the product reads it (setFogLadder): an evaluator whose own tables are for
+// another fog, given two rungs built by buildFogTables at K_t / √1.2 and K_t √1.2, shows K_t
+// from both (the wanted fog at the bracket's geometric middle, the worst place), against tables
+// built at K_t itself; a rung at K_t exactly gives the own tables' image; rungs further apart than
+// the ladder's ratio, or made for another pose, are not read (viewTablesReady false).
+TEST(AirlightImage, FogLadderReadsTwoRungsAroundTheFog) {
+  const EgoLampsAndStreetLamp rig;
+  const Scene& scene = rig.scene;
+  const SurfaceBuffers& surf = rig.surf;
+  const FastPathOptions& fast = rig.fast;
+  const double kt = scene.fog.extinction_per_m;
+  auto pool = std::make_shared<ThreadPool>(0);
+  auto sceneAt = [&](double k) { return rig.at(k); };
+  AirlightImage exact;
+  auto own = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, pool, fast);
+  ASSERT_TRUE(own.has_value());
+  own->evaluate(scene, surf, SubsamplingOptions{.full = true}, exact);
+  EXPECT_EQ(exact.fog_rungs, 0);
+
+  constexpr double kRatio = 1.2;
+  auto lo = AirlightImageEvaluator::buildFogTables(sceneAt(kt / std::sqrt(kRatio)), fast, pool);
+  auto hi = AirlightImageEvaluator::buildFogTables(sceneAt(kt * std::sqrt(kRatio)), fast, pool);
+  auto at = AirlightImageEvaluator::buildFogTables(scene, fast, pool);
+  ASSERT_TRUE(lo.has_value() && hi.has_value() && at.has_value());
+  EXPECT_NEAR(fogTablesExtinction(**lo), kt / std::sqrt(kRatio), 1e-15);
+  EXPECT_GT(fogTablesBytes(**lo), 0u);
+
+  // An evaluator whose own tables were made at 3 K_t, then given the ladder and K_t.
+  const Scene far = sceneAt(3.0 * kt);
+  auto ev = AirlightImageEvaluator::build(far, AirlightMethod::Accurate, {}, pool, fast);
+  ASSERT_TRUE(ev.has_value());
+  AirlightImage img;
+  ev->evaluate(far, surf, SubsamplingOptions{.full = true}, img);
+  ev->setFogLadder({*lo, *hi}, kRatio);
+  ASSERT_TRUE(ev->setFog(scene.fog));
+  EXPECT_TRUE(ev->viewTablesReady(scene.camera));
+  ev->evaluate(scene, surf, SubsamplingOptions{.full = true}, img);
+  EXPECT_EQ(img.fog_rungs, 2);
+  EXPECT_GT(img.table_seconds, 0.0);  // the rungs' merges, no build
+  const auto [p95, mx] = imageError(img, exact);
+  // The same two rungs subsampled, as frames are made.
+  AirlightImage sub, exactSub;
+  ev->evaluate(scene, surf, SubsamplingOptions{}, sub);
+  own->evaluate(scene, surf, SubsamplingOptions{}, exactSub);
+  const auto [subP95, subMax] = imageError(sub, exactSub);
+  std::printf("K_t between rungs %.2f apart: p95 %.2e max %.2e against tables at K_t (subsampled: p95 %.2e max %.2e)\n",
+              kRatio, p95, mx, subP95, subMax);
+  EXPECT_LE(p95, 6e-3);  // FogBetweenTwoTabulatedFogs: 4.5e-3 for images blended offline
+  EXPECT_LE(subP95, 1e-2);
+  // Blending is what makes it: either rung alone is several times further off.
+  {
+    auto one = AirlightImageEvaluator::build(far, AirlightMethod::Accurate, {}, pool, fast);
+    ASSERT_TRUE(one.has_value());
+    AirlightImage loImg;
+    one->evaluate(far, surf, SubsamplingOptions{.full = true}, loImg);
+    one->setFogLadder({*lo}, kRatio);
+    ASSERT_TRUE(one->setFog(sceneAt(kt / std::sqrt(kRatio)).fog));
+    one->evaluate(sceneAt(kt / std::sqrt(kRatio)), surf, SubsamplingOptions{.full = true}, loImg);
+    EXPECT_EQ(loImg.fog_rungs, 1);
+    EXPECT_GT(imageError(loImg, exact).first, 3.0 * p95);
+  }
+
+  // A rung at K_t exactly: the own tables' image (the same tables, merged the same way).
+  ev->setFogLadder({*lo, *at, *hi}, kRatio);
+  ev->evaluate(scene, surf, SubsamplingOptions{.full = true}, img);
+  EXPECT_EQ(img.fog_rungs, 1);
+  EXPECT_LE(imageError(img, exact).second, 1e-6);
+
+  // Rungs further apart than the ratio: not read; nor rungs made for another pose.
+  ev->setFogLadder({*lo, *hi}, 1.1);
+  EXPECT_FALSE(ev->viewTablesReady(scene.camera));
+  Scene turned = scene;
+  turned.lamps[0].lamp.worldFromLamp = worldFromYawPitchRoll(radians(1.0), 0.0, 0.0) * turned.lamps[0].lamp.worldFromLamp;
+  ev->setFogLadder({*lo, *hi}, kRatio);
+  ASSERT_TRUE(ev->setLampPoses(turned));
+  EXPECT_FALSE(ev->viewTablesReady(scene.camera));
+  ASSERT_TRUE(ev->setLampPoses(scene));
+  EXPECT_TRUE(ev->viewTablesReady(scene.camera));
+  // Back at the own tables' fog: they serve again, the ladder aside.
+  ASSERT_TRUE(ev->setFog(far.fog));
+  ev->evaluate(far, surf, SubsamplingOptions{.full = true}, img);
+  EXPECT_EQ(img.fog_rungs, 0);
+  EXPECT_GT(img.table_seconds, 0.0);  // the own tables merged again, not built
+  EXPECT_LT(img.table_seconds, 0.5);
 }
 
 // An off-axis camera (one channel of a multi-screen cab) sees a window of a larger centred

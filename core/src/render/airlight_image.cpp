@@ -190,6 +190,22 @@ struct AirlightImageEvaluator::State {
     double a = 0.0, b = 0.0, r2 = 0.0;
   };
   std::vector<TableUse> tableUses;
+  // The per-ray guard discs this frame reads: rayGuards, or a rung's (setFogLadder).
+  std::vector<RayGuard> frameGuards;
+  // The fog ladder (setFogLadder), sorted by K_t, and the merged tables of the rungs read lately
+  // (per rung and set of enabled lamps; a fog ramp reads each rung for several frames).
+  std::vector<std::shared_ptr<const FogTables>> ladder;
+  double ladderMaxRatio = 1.0;
+  struct RungMerge {
+    const FogTables* rung = nullptr;
+    std::vector<char> enabled;
+    std::vector<kernels::ViewTable> merged;
+    std::vector<TableUse> uses;
+    std::uint64_t lastUse = 0;
+  };
+  std::array<RungMerge, 3> rungMerges;
+  std::uint64_t frameCount = 0;
+  int fogRungs = 0;  // AirlightImage::fog_rungs of this frame
   std::vector<kernels::IsoLamp> isoParams;  // this frame, capacity kept
   // Per isoLamps entry: its IsoSky table (2·kIsoSkyNodes floats) and what it was built for
   // (distance and extinction; rebuilt when either changes, i.e. whenever eye or lamp moves).
@@ -212,6 +228,33 @@ struct AirlightImageEvaluator::State {
   std::vector<std::uint8_t> hyperPass;
   std::size_t scratchBatch = 0, scratchTile = 0, scratchNq = 0;
 };
+
+struct FogTables {
+  double kt = 0.0, albedo = 0.0;
+  // Per vehicle lamp (scene order): what a frame's lamp must be to read the rung (profiles kept
+  // alive, compared by address), its key (the fog's K_t aside), kTablesPerLamp tables, its guard.
+  std::vector<std::shared_ptr<const Profile>> profiles;
+  std::vector<glm::dvec3> colours;
+  std::vector<ViewKey> keys;
+  std::vector<kernels::ViewTable> tables;
+  std::vector<AirlightImageEvaluator::State::RayGuard> guards;
+  std::vector<char> built;  // per lamp: tabulated (the lamps on at the build), else no tables
+  std::string table_cache_error;  // the table cache's write failure, if any
+  // The tables merged for one set of enabled lamps (buildFogTables' `enabled`), made with the
+  // rung: a frame with that set reads them without merging (a merge copies and sums whole
+  // tables, tens of milliseconds at 1280×720).
+  std::vector<char> mergedFor;
+  std::vector<kernels::ViewTable> merged;
+  std::vector<AirlightImageEvaluator::State::TableUse> uses;
+};
+
+double fogTablesExtinction(const FogTables& rung) noexcept { return rung.kt; }
+
+std::size_t fogTablesBytes(const FogTables& rung) noexcept {
+  std::size_t n = 0;
+  for (const kernels::ViewTable& t : rung.tables) n += t.bytes();
+  return n;
+}
 
 Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene, AirlightMethod method,
                                                              const AirlightOptions& options, unsigned threads,
@@ -478,8 +521,8 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
     }
   }
   // Pixels at the image of a vehicle lamp: per ray (see State::rayGuards).
-  for (std::size_t v = 0; v < st.rayGuards.size(); ++v) {
-    const auto& gd = st.rayGuards[v];
+  for (std::size_t v = 0; v < st.frameGuards.size(); ++v) {
+    const auto& gd = st.frameGuards[v];
     if (!others || gd.r2 < 0.0 || !st.viewEnabled[v] || !reaches(gd.a, gd.b, gd.r2)) continue;
     const std::size_t m = compact(gd.a, gd.b, gd.r2);
     const AirlightEvaluator& ev = (*f.lamps)[st.viewLamps[v]];
@@ -1257,18 +1300,24 @@ void buildLampViewTables(const AirlightEvaluator& ev, const Camera& cam, const V
 // this frame's table lookups (State::tableUses): merged tables over the whole image; inside a
 // merged lamp's hole, its own frustum table subtracted again (the hole is where its insets and
 // per-ray guard take over); frustum tables that were not merged; insets over their rings.
-void mergeViewTables(State& st) {
+// `viewTables` holds kTablesPerLamp tables per vehicle lamp, `enabled` one flag per lamp; the
+// merged tables go to `merged` (mergedFrom: their members), the lookups to `uses` (they point
+// into `viewTables` and `merged`).
+void mergeTables(const kernels::ViewTable* viewTables, const std::vector<char>& enabled,
+                 std::vector<kernels::ViewTable>& merged, std::vector<std::vector<std::size_t>>& mergedFrom,
+                 std::vector<State::TableUse>& uses) {
   using TableUse = State::TableUse;
-  st.merged.clear();
-  st.mergedFrom.clear();
-  std::vector<char> inMerged(st.viewLamps.size(), 0);
-  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
-    const kernels::ViewTable& fv = st.viewTables[kTablesPerLamp * v];
-    if (!st.viewEnabled[v] || fv.data.empty() || inMerged[v]) continue;
+  merged.clear();
+  mergedFrom.clear();
+  const std::size_t nv = enabled.size();
+  std::vector<char> inMerged(nv, 0);
+  for (std::size_t v = 0; v < nv; ++v) {
+    const kernels::ViewTable& fv = viewTables[kTablesPerLamp * v];
+    if (!enabled[v] || fv.data.empty() || inMerged[v]) continue;
     std::vector<std::size_t> group{v};
-    for (std::size_t u = v + 1; u < st.viewLamps.size(); ++u) {
-      const kernels::ViewTable& fu = st.viewTables[kTablesPerLamp * u];
-      if (st.viewEnabled[u] && !fu.data.empty() && fu.sameGrid(fv) && fu.weight[0] == fv.weight[0] &&
+    for (std::size_t u = v + 1; u < nv; ++u) {
+      const kernels::ViewTable& fu = viewTables[kTablesPerLamp * u];
+      if (enabled[u] && !fu.data.empty() && fu.sameGrid(fv) && fu.weight[0] == fv.weight[0] &&
           fu.weight[1] == fv.weight[1] && fu.weight[2] == fv.weight[2])
         group.push_back(u);
     }
@@ -1277,34 +1326,38 @@ void mergeViewTables(State& st) {
     m.guardA = m.guardB = 0.0f;
     m.innerR2 = -1.0f;
     m.outerR2 = 3.0e38f;
-    for (std::size_t k = 1; k < group.size(); ++k) m.add(st.viewTables[kTablesPerLamp * group[k]]);
+    for (std::size_t k = 1; k < group.size(); ++k) m.add(viewTables[kTablesPerLamp * group[k]]);
     for (std::size_t u : group) inMerged[u] = 1;
-    st.merged.push_back(std::move(m));
-    st.mergedFrom.push_back(std::move(group));
+    merged.push_back(std::move(m));
+    mergedFrom.push_back(std::move(group));
   }
-  st.tableUses.clear();
-  for (const kernels::ViewTable& m : st.merged) st.tableUses.push_back(TableUse{&m, kernels::ViewTableUse::of(m)});
-  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
-    if (!st.viewEnabled[v]) continue;
-    const kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
+  uses.clear();
+  for (const kernels::ViewTable& m : merged) uses.push_back(TableUse{&m, kernels::ViewTableUse::of(m)});
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (!enabled[v]) continue;
+    const kernels::ViewTable* tables = viewTables + kTablesPerLamp * v;
     if (tables[0].data.empty()) continue;
     if (!inMerged[v]) {
-      st.tableUses.push_back(TableUse{&tables[0], kernels::ViewTableUse::of(tables[0])});
+      uses.push_back(TableUse{&tables[0], kernels::ViewTableUse::of(tables[0])});
     } else if (tables[0].innerR2 >= 0.0f) {
       kernels::ViewTableUse minus = kernels::ViewTableUse::of(tables[0]);
       for (float& w : minus.weight) w = -w;
       minus.outerR2 = tables[0].innerR2;
       minus.innerR2 = -1.0f;
-      st.tableUses.push_back(TableUse{&tables[0], minus, false, static_cast<double>(tables[0].guardA),
+      uses.push_back(TableUse{&tables[0], minus, false, static_cast<double>(tables[0].guardA),
                                       static_cast<double>(tables[0].guardB), static_cast<double>(minus.outerR2)});
     }
     for (std::size_t t = 1; t < kTablesPerLamp; ++t) {
       const kernels::ViewTable& in = tables[t];
       if (in.data.empty()) continue;
-      st.tableUses.push_back(TableUse{&in, kernels::ViewTableUse::of(in), false, static_cast<double>(in.guardA),
+      uses.push_back(TableUse{&in, kernels::ViewTableUse::of(in), false, static_cast<double>(in.guardA),
                                       static_cast<double>(in.guardB), static_cast<double>(in.outerR2)});
     }
   }
+}
+
+void mergeViewTables(State& st) {
+  mergeTables(st.viewTables.data(), st.viewEnabled, st.merged, st.mergedFrom, st.tableUses);
   st.mergedEnabled = st.viewEnabled;
   st.mergedValid = true;
 }
@@ -1337,13 +1390,130 @@ detail::TableKey viewTableKey(const AirlightEvaluator& ev, const Camera& cam, co
   return k;
 }
 
+// The key of a vehicle lamp's view tables for this camera and the lamp's pose and fog.
+ViewKey viewKeyOf(const AirlightEvaluator& ev, const CameraFrame& cf) {
+  const Camera& cam = cf.cam;
+  return ViewKey{cf.toCamera(ev.lamp().position_m),
+                 cf.camFromWorld * ev.lamp().worldFromLamp,
+                 cam.fov_x,
+                 static_cast<double>(cam.height) / cam.width,
+                 cf.principal.x / cam.width,
+                 cf.principal.y / cam.height,
+                 ev.medium().extinction_per_m,
+                 ev.medium().albedo};
+}
+
+// True when every vehicle lamp's own tables were made for this frame's key.
+bool ownTablesServe(const State& st, const Lamps& lamps, const CameraFrame& cf) {
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v)
+    if (!st.viewValid[v] || !st.viewKeys[v].sameAs(viewKeyOf(lamps[st.viewLamps[v]], cf))) return false;
+  return true;
+}
+
+// The rungs of the fog ladder a frame reads: `lo` alone (w = 0, hi null) when a rung was made
+// for the frame's K_t, else the nearest rungs below and above, hi weighted by w.
+struct LadderPick {
+  const FogTables* lo = nullptr;
+  const FogTables* hi = nullptr;
+  double w = 0.0;
+};
+
+// The rungs that serve this frame (setFogLadder's rule), if any: made for the same lamps (profile,
+// colour, order; tables for every lamp on), poses relative to the camera, frustum and albedo,
+// and K_t at most ladderMaxRatio apart around the frame's.
+std::optional<LadderPick> pickRungs(const State& st, const Lamps& lamps, const CameraFrame& cf) {
+  const std::size_t nv = st.viewLamps.size();
+  if (st.ladder.empty() || nv == 0) return std::nullopt;
+  std::vector<ViewKey> keys;
+  keys.reserve(nv);
+  for (std::size_t v = 0; v < nv; ++v) keys.push_back(viewKeyOf(lamps[st.viewLamps[v]], cf));
+  const double kt = keys[0].kt;  // setFog gives every lamp the same fog
+  auto fits = [&](const FogTables& r) {
+    if (r.keys.size() != nv) return false;
+    for (std::size_t v = 0; v < nv; ++v) {
+      const Lamp& lamp = lamps[st.viewLamps[v]].lamp();
+      if (r.profiles[v].get() != lamp.profile.get() || r.colours[v] != lamp.color) return false;
+      if (!st.enabled[st.viewLamps[v]]) continue;  // off this frame: its tables are not read
+      if (!r.built[v]) return false;
+      ViewKey k = keys[v];
+      k.kt = r.kt;
+      if (!r.keys[v].sameAs(k)) return false;  // pose, frustum, albedo
+    }
+    return true;
+  };
+  const FogTables* lo = nullptr;
+  const FogTables* hi = nullptr;
+  for (const auto& r : st.ladder) {
+    if (!fits(*r)) continue;
+    if (r->kt <= kt && (!lo || r->kt > lo->kt)) lo = r.get();
+    if (r->kt >= kt && (!hi || r->kt < hi->kt)) hi = r.get();
+  }
+  if (lo && lo->kt == kt) return LadderPick{lo, nullptr, 0.0};
+  if (hi && hi->kt == kt) return LadderPick{hi, nullptr, 0.0};
+  if (!lo || !hi || hi->kt > lo->kt * st.ladderMaxRatio * (1.0 + 1e-12)) return std::nullopt;
+  return LadderPick{lo, hi, std::log(kt / lo->kt) / std::log(hi->kt / lo->kt)};
+}
+
+// A rung's tables merged for this frame's enabled lamps (as mergeViewTables merges the own
+// ones), kept in State::rungMerges: a ramp reads each rung over several frames, and a merge
+// copies and sums whole tables (tens of milliseconds at 1280×720). The rung's own merge when it
+// was made for this set of lamps; else the least recently used slot is taken.
+const std::vector<State::TableUse>& rungMerge(State& st, const FogTables& rung, double& seconds) {
+  if (rung.mergedFor == st.viewEnabled) return rung.uses;
+  for (State::RungMerge& m : st.rungMerges)
+    if (m.rung == &rung && m.enabled == st.viewEnabled) {
+      m.lastUse = st.frameCount;
+      return m.uses;
+    }
+  State::RungMerge* slot = &st.rungMerges[0];
+  for (State::RungMerge& m : st.rungMerges)
+    if (m.lastUse < slot->lastUse) slot = &m;
+  const auto t = std::chrono::steady_clock::now();
+  std::vector<std::vector<std::size_t>> members;
+  mergeTables(rung.tables.data(), st.viewEnabled, slot->merged, members, slot->uses);
+  slot->rung = &rung;
+  slot->enabled = st.viewEnabled;
+  slot->lastUse = st.frameCount;
+  seconds += since(t);
+  return slot->uses;
+}
+
+// This frame's table lookups from the ladder: each rung's lookups with its weight (1 − w and w,
+// linear in ln K_t; a rung at the frame's K_t alone), and the rung's per-ray guards (they
+// depend on the pose only). The own tables are left as they are, their lookups listed again
+// when they next serve. Returns the seconds spent merging.
+double readLadder(State& st, const LadderPick& pick) {
+  double seconds = 0.0;
+  st.tableUses.clear();
+  auto add = [&](const FogTables& rung, double w) {
+    if (w <= 0.0) return;
+    for (State::TableUse tu : rungMerge(st, rung, seconds)) {
+      for (float& x : tu.use.weight) x = static_cast<float>(static_cast<double>(x) * w);
+      st.tableUses.push_back(tu);
+    }
+  };
+  add(*pick.lo, pick.hi ? 1.0 - pick.w : 1.0);
+  if (pick.hi) add(*pick.hi, pick.w);
+  st.frameGuards = pick.lo->guards;
+  st.mergedValid = false;
+  st.fogRungs = pick.hi ? 2 : 1;
+  return seconds;
+}
+
 // Stage "refresh view tables": the vehicle lamps' view tables, rebuilt only for lamps whose pose
 // relative to the camera, the frustum or the fog changed (ViewKey; a table costs seconds, a
 // fixed rig builds once), then merged again when a table or the set of enabled lamps changed.
+// When the own tables do not serve the frame and two rungs of the fog ladder do, those are read
+// instead (readLadder). `rung` = true (buildFogTables): only the lamps that are on, no merge.
 // Returns the seconds spent building and merging.
-double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const CameraFrame& cf) {
+double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const CameraFrame& cf, bool rung = false) {
   const Camera& cam = cf.cam;
   double seconds = 0.0;
+  ++st.frameCount;
+  st.fogRungs = 0;
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
+  if (!st.ladder.empty() && !ownTablesServe(st, lamps, cf))
+    if (const std::optional<LadderPick> pick = pickRungs(st, lamps, cf)) return readLadder(st, *pick);
   // One distance scale for every vehicle lamp's tables, so that their frustum tables share a
   // grid and can be merged.
   double viewD = 0.0;
@@ -1354,16 +1524,9 @@ double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const 
   }
   bool viewChanged = false;
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
-    st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
     const AirlightEvaluator& ev = lamps[st.viewLamps[v]];
-    const ViewKey key{cf.toCamera(ev.lamp().position_m),
-                      cf.camFromWorld * ev.lamp().worldFromLamp,
-                      cam.fov_x,
-                      static_cast<double>(cam.height) / cam.width,
-                      cf.principal.x / cam.width,
-                      cf.principal.y / cam.height,
-                      ev.medium().extinction_per_m,
-                      ev.medium().albedo};
+    const ViewKey key = viewKeyOf(ev, cf);
+    if (rung && !st.viewEnabled[v]) continue;
     if (st.viewValid[v] && st.viewKeys[v].sameAs(key)) continue;
     viewChanged = true;
     kernels::ViewTable* tables = st.viewTables.data() + kTablesPerLamp * v;
@@ -1394,11 +1557,12 @@ double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const 
     for (std::size_t t = 0; t < kTablesPerLamp; ++t) seconds += tables[t].build_seconds;
   }
   if (viewChanged || st.mergedEnabled != st.viewEnabled) st.mergedValid = false;
-  if (!st.mergedValid) {
+  if (!st.mergedValid && !rung) {
     const auto tm = std::chrono::steady_clock::now();
     mergeViewTables(st);
     seconds += since(tm);
   }
+  st.frameGuards = st.rayGuards;
   return seconds;
 }
 
@@ -2046,6 +2210,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   st.tablesLoaded = 0;
   out.table_seconds += refreshViewTables(st, lamps_, *pool_, cf);
   out.view_tables_loaded = st.tablesLoaded;
+  out.fog_rungs = st.fogRungs;
   if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
   refreshPencils(st, lamps_, cf.cam);
   const auto tSpokes = std::chrono::steady_clock::now();
@@ -2069,5 +2234,72 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   reportFigures(st, pool_->size(), out);
   out.seconds = since(t0);
 }
+
+Result<std::shared_ptr<const FogTables>> AirlightImageEvaluator::buildFogTables(const Scene& scene,
+                                                                                 const FastPathOptions& fast,
+                                                                                 std::shared_ptr<ThreadPool> pool,
+                                                                                 const std::vector<char>& enabled) {
+  if (!enabled.empty() && enabled.size() != scene.lamps.size())
+    return Error{"buildFogTables: " + std::to_string(enabled.size()) + " enabled flags for " +
+                 std::to_string(scene.lamps.size()) + " lamps"};
+  // An evaluator of the vehicle lamps alone (the rest need no view tables), whose view-table
+  // stage runs once; its tables, keys and guards become the rung.
+  Scene s = scene;
+  s.lamps.clear();
+  std::vector<char> on;
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const SceneLamp& l = scene.lamps[i];
+    if (l.mount == LampMount::Vehicle && !std::holds_alternative<IsotropicProfile>(l.lamp.profile->model())) {
+      s.lamps.push_back(l);
+      on.push_back(enabled.empty() || enabled[i] != 0 ? 1 : 0);
+    }
+  }
+  auto e = build(s, AirlightMethod::Accurate, AirlightOptions{}, std::move(pool), fast);
+  if (!e) return e.error();
+  State& st = *e->state_;
+  for (std::size_t i = 0; i < on.size(); ++i) st.enabled[i] = on[i];
+  const CameraFrame cf(s.camera);
+  refreshViewTables(st, e->lamps_, *e->pool_, cf, /*rung=*/true);
+  auto rung = std::make_shared<FogTables>();
+  rung->kt = s.fog.extinction_per_m;
+  rung->albedo = s.fog.albedo;
+  for (std::size_t v = 0; v < st.viewLamps.size(); ++v) {
+    rung->profiles.push_back(e->lamps_[st.viewLamps[v]].lamp().profile);
+    rung->colours.push_back(e->lamps_[st.viewLamps[v]].lamp().color);
+  }
+  rung->keys = st.viewKeys;
+  rung->tables = std::move(st.viewTables);
+  rung->guards = st.rayGuards;
+  rung->built.assign(st.viewValid.begin(), st.viewValid.end());
+  rung->table_cache_error = std::move(st.tableCacheError);
+  // Merged for `enabled` (the uses point into the rung's own vectors, which do not move again).
+  std::vector<std::vector<std::size_t>> members;
+  if (st.fast.enabled && on.size() == st.viewLamps.size()) {
+    rung->mergedFor = on;
+    mergeTables(rung->tables.data(), rung->mergedFor, rung->merged, members, rung->uses);
+  }
+  return std::shared_ptr<const FogTables>(std::move(rung));
+}
+
+void AirlightImageEvaluator::setFogLadder(std::vector<std::shared_ptr<const FogTables>> rungs, double maxRatio) {
+  State& st = *state_;
+  std::sort(rungs.begin(), rungs.end(), [](const auto& a, const auto& b) { return a->kt < b->kt; });
+  // Merges of rungs that leave the ladder are dropped: a new rung may be built at the address of
+  // one freed.
+  for (State::RungMerge& m : st.rungMerges) {
+    const bool kept = std::any_of(rungs.begin(), rungs.end(), [&](const auto& r) { return r.get() == m.rung; });
+    if (!kept) m = State::RungMerge{};
+  }
+  st.ladder = std::move(rungs);
+  st.ladderMaxRatio = std::max(1.0, maxRatio);
+}
+
+bool AirlightImageEvaluator::viewTablesReady(const Camera& camera) const {
+  const State& st = *state_;
+  const CameraFrame cf(camera);
+  return ownTablesServe(st, lamps_, cf) || pickRungs(st, lamps_, cf).has_value();
+}
+
+std::string_view fogTablesCacheError(const FogTables& rung) noexcept { return rung.table_cache_error; }
 
 }  // namespace fogbeam

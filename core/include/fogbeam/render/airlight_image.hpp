@@ -141,6 +141,10 @@ struct AirlightImage {
   double seconds = 0.0;          ///< wall time of the last evaluate(), table builds included
   double table_seconds = 0.0;    ///< part of `seconds` spent (re)building view and sky tables
   std::size_t view_tables_loaded = 0;  ///< vehicle lamps whose view tables came from the table cache this frame
+  /// Rungs of the fog ladder the vehicle lamps' view tables were read from this frame
+  /// (AirlightImageEvaluator::setFogLadder): 0 = the evaluator's own tables (or none), 1 = a rung
+  /// at the frame's K_t, 2 = two rungs around it, blended.
+  int fog_rungs = 0;
   std::string table_cache_error;       ///< the last failure to write the table cache (empty: none)
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
@@ -156,6 +160,17 @@ struct AirlightImage {
   double judge_seconds = 0.0;    ///< distance edges and block tests (subsampling)
   double fill_seconds = 0.0;     ///< interpolating and writing the image (subsampling)
 };
+
+/// The view tables of a scene's vehicle lamps built for one fog: a rung of the fog ladder
+/// (AirlightImageEvaluator::buildFogTables, setFogLadder; docs/airlight.md, "The fog ladder").
+/// Immutable once built: shared between evaluators and threads.
+struct FogTables;
+/// The extinction coefficient (1/m) a rung was built for.
+[[nodiscard]] double fogTablesExtinction(const FogTables& rung) noexcept;
+/// Bytes its tables hold.
+[[nodiscard]] std::size_t fogTablesBytes(const FogTables& rung) noexcept;
+/// Why its tables could not be written to the table cache (empty: written, or no cache).
+[[nodiscard]] std::string_view fogTablesCacheError(const FogTables& rung) noexcept;
 
 class AirlightImageEvaluator {
  public:
@@ -189,6 +204,33 @@ class AirlightImageEvaluator {
   /// Errors: an invalid medium or another phase function (build a new evaluator); the
   /// evaluator is then unchanged. Not thread-safe with evaluate().
   [[nodiscard]] Status setFog(const Medium& fog);
+
+  /// The view tables of `scene`'s vehicle lamps (mount Vehicle, profile not isotropic; scene
+  /// order) for its fog, lamp poses and camera, built on `pool` as evaluate() builds them (or
+  /// loaded from fast.table_cache_dir, and stored there): one rung of a fog ladder. About a
+  /// second at 1280×720 (docs/airlight.md). `enabled` (one flag per scene lamp, empty: all on):
+  /// the lamps that will be on. Only those are tabulated (a frame with another lamp on does not
+  /// read the rung), and the rung is merged for them (frames with fewer lamps on merge once,
+  /// tens of milliseconds). Thread-safe: touches no evaluator. Errors as
+  /// build()'s, or `enabled` of another size than the scene's lamps.
+  [[nodiscard]] static Result<std::shared_ptr<const FogTables>> buildFogTables(const Scene& scene,
+                                                                               const FastPathOptions& fast,
+                                                                               std::shared_ptr<ThreadPool> pool,
+                                                                               const std::vector<char>& enabled = {});
+  /// The fog ladder (docs/airlight.md, "The fog ladder"): rungs that evaluate() reads instead of
+  /// building when the vehicle lamps' own tables were made for another fog. A frame whose K_t
+  /// lies between two rungs made for the same lamps (profiles, colours, scene order; tables for
+  /// every lamp on), poses
+  /// relative to the camera, frustum and albedo, at most `maxRatio` apart in K_t, reads both,
+  /// weighted linearly in ln K_t (p95 2e-3 against tables at its K_t for rungs 1.2 apart); a
+  /// rung at its K_t exactly is read alone. Frames that the own tables serve, or that no two
+  /// rungs bracket, go on as before (the latter build). Replaces the previous set (empty: off);
+  /// the rungs are kept alive by the evaluator. Not thread-safe with evaluate().
+  void setFogLadder(std::vector<std::shared_ptr<const FogTables>> rungs, double maxRatio);
+  /// True when evaluate() of `camera`'s view, with the lamps' current poses and fog (setFog,
+  /// setLampPoses), reads every vehicle lamp's view tables without building (its own tables or
+  /// the ladder's); true without vehicle lamps. What the service checks before a table frame.
+  [[nodiscard]] bool viewTablesReady(const Camera& camera) const;
 
   /// Sum over lamps of colour × L_m for one ray (cd/m² per channel), every lamp through the
   /// per-ray evaluator of the method (no tables): the definition the fast path is tested against.

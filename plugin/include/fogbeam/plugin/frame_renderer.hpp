@@ -21,6 +21,12 @@
 //  * glow and glare (LampEffects) of the lamps that are on, per frame, on the airlight's pool.
 //  * rig lamps with an aperture become their point lamps once placed (expandRig, placeRigPoint).
 //
+// The fog ladder ([render] fog_ladder_ratio): while the fog changes frame after frame, the ego
+// lamps' view tables are built in the background at K_t = ratio^m per metre (rungs), one at a
+// time, around the fog and ahead of it; a frame whose fog lies between two rungs (same fog
+// otherwise, bending within the tolerance) reads both instead of going per pixel
+// (RenderedFrame::fog_rungs), and is not pending.
+//
 // Tables that depend on the fog and on the ego lamps' bending angle (tables for one angle serve
 // angles within [ego] bending_tolerance_deg of it) take seconds to build; a change starts a build on a background thread
 // (RenderedFrame::pending while it is not in use). With [render] pending_tables = "per-pixel"
@@ -109,6 +115,10 @@ struct RenderedFrame {
   std::size_t airlight_evaluated = 0;  ///< pixels evaluated (the rest interpolated)
   std::size_t traffic_evaluated = 0;   ///< pixels of the traffic layer evaluated (0: no traffic lamps)
   bool pending = false;            ///< a fog or bending change is still being tabulated
+  /// Rungs of the fog ladder the ego lamps' tables were read from ([render] fog_ladder_ratio):
+  /// 0 = the tables built for the frame's fog (or none: pending, GPU airlight), 1 = a rung at its
+  /// K_t, 2 = the two around it.
+  int fog_rungs = 0;
   /// The host depth frame the frame was rendered on (HostView::frame); 0 = the channel's own view.
   std::uint64_t host_frame = 0;
   /// rgba8-srgb: the EV the frame was packed at (the channel's exposure_ev, or its automatic

@@ -101,6 +101,18 @@ struct ServiceConfig {
   /// frame N + table_adopt_frames on (waited for there if it is not done), so that the frames a
   /// run makes do not depend on how fast the machine builds.
   int table_adopt_frames = 60;
+  /// The fog ladder (pending_tables = "per-pixel"; docs/service.md, "The fog ladder"): the ego
+  /// lamps' view tables built in the background at K_t = fog_ladder_ratio^m per metre (rungs),
+  /// around the fog while tables serve it and where it heads while it changes; a frame between
+  /// two rungs reads both instead of going per pixel. 0 = off; else a ratio in [1.05, 2]. At
+  /// most fog_ladder_rungs rungs are kept (those nearest the fog; ~20 MB each at the default
+  /// view_table_step_deg).
+  double fog_ladder_ratio = 1.2;
+  int fog_ladder_rungs = 8;
+  /// Lock-step and replay: a rung started at frame N is read from frame N + this on (waited for
+  /// there if it is not done), as table_adopt_frames for whole builds; shorter, since a ramp
+  /// crosses a rung every few tenths of a second.
+  int fog_ladder_adopt_frames = 20;
   /// Frame overlap (docs/service.md, "Overlapped frames"): the surface pass of the next frame
   /// beside the airlight, glow, glare and composite of the previous one, on a second thread.
   /// "auto" (on where cores allow: overlapsFrames in frame_pipeline.hpp), "on" or "off". Frames
