@@ -56,15 +56,15 @@ VehiclePose poseOf(const Camera& host, const Camera& vehicleCamera) {
   return v;
 }
 
-/// What the tables depend on besides the rig: the fog and the ego's bending angle. Fogs compare
-/// by the medium they describe (a visibility and the equivalent extinction are equal); tables
-/// for one angle serve angles within [ego] bending_tolerance_deg of it (serves()).
 /// The extinction coefficient an environment message describes, 1/m.
 double ktOf(const ipc::Environment& e) {
   return e.visibility_m > 0.0f ? extinctionFromVisibility(static_cast<double>(e.visibility_m))
                                : static_cast<double>(e.extinction_per_m);
 }
 
+/// What the tables depend on besides the rig: the fog and the ego's bending angle. Fogs compare
+/// by the medium they describe (a visibility and the equivalent extinction are equal); tables
+/// for one angle serve angles within [ego] bending_tolerance_deg of it (serves()).
 struct TableKey {
   ipc::Environment fog;
   double bendingDeg = 0.0;
@@ -252,7 +252,9 @@ struct ChannelRenderer::Impl {
   int fogChanging = 0, fogTrend = 0;
   double lastKt = 0.0;
   double lastRungFrames = 1.0;  ///< frames the last rung took from its start to being taken
-  std::vector<char> lastLampOn;  ///< the previous frame's lamps on (a rung is merged for them)
+  /// The ego lamps' light bits (egoLightBits: every rig lamp's) the rungs were made for (the
+  /// lamps they tabulate), and those of the rung being built.
+  std::uint32_t egoLightBits = 0, rungLights = 0, rungBuildLights = 0;
   std::uint64_t ladderMisses = 0;  ///< ladder frames the evaluator could not serve (per pixel instead)
 
   AirlightImage air, trafficAir;
@@ -327,6 +329,8 @@ struct ChannelRenderer::Impl {
   [[nodiscard]] Status updateLadder(const VehiclePose& pose, const TableKey& want, bool wait, bool served, Begun& b);
   void startRung(const VehiclePose& pose, int index);
   void litLamps(std::uint32_t lights, Begun& b);
+  /// Per lamp of sceneFor()'s scenes (`count` of them): on (1) or off by the light bits.
+  [[nodiscard]] std::vector<char> lampsOn(std::uint32_t lights, std::size_t count) const;
   [[nodiscard]] Status setEvaluatorLamps(const Begun& b);
   void startBuild(const VehiclePose& pose, const TableKey& want);
   void adoptHostIntrinsics(const Camera& host);
@@ -397,6 +401,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   for (const auto& [cls, rig] : config.traffic) impl->trafficPoints.emplace(&rig, expandRig(rig));
   impl->perPixelPending = config.pending_tables == "per-pixel";
   impl->ladderRatio = impl->perPixelPending ? config.fog_ladder_ratio : 0.0;
+  for (const RigLamp& l : config.ego.lamps) impl->egoLightBits |= l.light_bit;
   impl->framePool = std::make_shared<ThreadPool>(config.threads);
   if (config.effects.render.airlight == AirlightDevice::Gpu) {
     if (!gl) {
@@ -526,8 +531,10 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
   // background, when frames are cheap: while tables serve the fog, the rungs nearest it on both
   // sides, up to fog_ladder_rungs; while the fog keeps changing on the ladder (two frames in a
   // row or more: a ramp, not a step, which the exact build after it serves), around where it
-  // is heading. Frames off the ladder (per pixel) need the cores: no rung is started then. Taken as table builds are, free-running when done, lock-step and
-  // replay fog_ladder_adopt_frames after they started (so that runs repeat).
+  // is heading. Frames off the ladder (per pixel) need the cores: no rung is started then. A
+  // rung is taken as table builds are, free-running when done, lock-step and replay
+  // fog_ladder_adopt_frames after it started (so that runs repeat). Rungs hold the ego lamps the
+  // frame's light bits switch on: other bits, another ladder.
   b.ladder = false;
   if (ladderRatio <= 1.0) return Ok{};
   if (rungBuilding.valid()) {
@@ -537,18 +544,21 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
       lastRungFrames = static_cast<double>(frameIndex - rungStart);
       auto built = rungBuilding.get();
       if (!built) return built.error();
-      if (rungBaseSet && rungBuildBase == rungBase) {
+      if (rungBaseSet && rungBuildBase == rungBase && rungBuildLights == rungLights) {
         rungs[rungBuildIndex] = std::move(built).value();
         ++rungsVersion;
       }
     }
   }
-  // Another fog (its K_t aside) or a bending angle beyond the tolerance: a new ladder.
+  // Another fog (its K_t aside), a bending angle beyond the tolerance or other ego lamps on: a
+  // new ladder.
   const TableKey base = ladderBase(want);
-  if (!rungBaseSet || !rungBase.serves(base, config->bending_tolerance_deg)) {
+  const std::uint32_t lights = b.lights & egoLightBits;
+  if (!rungBaseSet || !rungBase.serves(base, config->bending_tolerance_deg) || lights != rungLights) {
     if (!rungs.empty()) ++rungsVersion;
     rungs.clear();
     rungBase = base;
+    rungLights = lights;
     rungBaseSet = true;
   }
   const double kt = ktOf(want.fog);
@@ -567,7 +577,7 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
   const int m = static_cast<int>(std::floor(std::log(kt) / lr));
   const bool onLadder = rungs.count(m) != 0 && rungs.count(m + 1) != 0;
   if (!served && onLadder && fogChanging >= 2 && !rungBuilding.valid() && !building.valid()) {
-    // Where the fog will be when this build is taken, at its present rate: table_adopt frames
+    // Where the fog will be when this build is taken, at its present rate: fog_ladder_adopt_frames
     // ahead (lock-step, replay), or as many frames as the last rung took (free-running). The
     // rungs around that fog first (nearer first), the next one beyond it, then those around the
     // fog now.
@@ -629,9 +639,10 @@ void ChannelRenderer::Impl::startRung(const VehiclePose& pose, int index) {
   key.fog.extinction_per_m = static_cast<float>(std::pow(ladderRatio, index));
   rungBuildIndex = index;
   rungBuildBase = rungBase;
+  rungBuildLights = rungLights;
   rungStart = frameIndex;
   Scene scene = sceneFor(pose, key);
-  std::vector<char> on = lastLampOn.size() == scene.lamps.size() ? lastLampOn : std::vector<char>{};
+  std::vector<char> on = lampsOn(rungLights, scene.lamps.size());
   rungBuilding = std::async(std::launch::async, [this, scene = std::move(scene), on = std::move(on)] {
     return AirlightImageEvaluator::buildFogTables(scene, fast, std::make_shared<ThreadPool>(config->threads), on);
   });
@@ -642,16 +653,20 @@ void ChannelRenderer::Impl::litLamps(std::uint32_t lights, Begun& b) {
   // per lamp: those that are on go to b.lit (world lamps always are), and b.lampOn says which
   // they are for the evaluator (setEvaluatorLamps, at the frame's airlight).
   const Scene& scene = b.scene;
+  b.lampOn = lampsOn(lights, scene.lamps.size());
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i)
+    if (b.lampOn[i]) b.lit.lamps.push_back(scene.lamps[i]);
+}
+
+std::vector<char> ChannelRenderer::Impl::lampsOn(std::uint32_t lights, std::size_t count) const {
   const std::size_t worldCount = world.lamps.size();
-  b.lampOn.assign(scene.lamps.size(), 0);
-  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+  std::vector<char> on(count, 0);
+  for (std::size_t i = 0; i < count; ++i) {
     // All points of an aperture lamp switch together: by their rig lamp's light bit.
     const std::uint32_t bit = i < worldCount ? 0u : config->ego.lamps[egoPoints[i - worldCount].rig_lamp].light_bit;
-    const bool on = bit == 0 || (lights & bit) != 0;
-    b.lampOn[i] = on ? 1 : 0;
-    if (on) b.lit.lamps.push_back(scene.lamps[i]);
+    on[i] = bit == 0 || (lights & bit) != 0 ? 1 : 0;
   }
-  lastLampOn = b.lampOn;
+  return on;
 }
 
 Status ChannelRenderer::Impl::setEvaluatorLamps(const Begun& b) {

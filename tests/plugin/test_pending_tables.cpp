@@ -235,12 +235,17 @@ TEST(PendingTables, AFogRampReadsTheFogLadder) {
     const ServiceConfig cfg = configWith(settings);
     auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
     ASSERT_TRUE(r) << r.error().message;
-    frames.resize(kSteady + kRamp);
+    frames.resize(kSteady + kRamp + 1);
     for (int k = 0; k < kSteady + kRamp; ++k) {
       const double t = k < kSteady ? 0.0 : static_cast<double>(k - kSteady + 1) / kRamp;
       const auto v = static_cast<float>(80.0 * std::pow(static_cast<double>(last) / 80.0, t));
       ASSERT_TRUE((*r)->render(stateWith(k + 1 == kSteady + kRamp ? last : v), ipc::Clock::now(), true, frames[static_cast<std::size_t>(k)]));
     }
+    // The high beam switched on as the fog goes on changing: the rungs hold the low beam alone,
+    // so the frame goes per pixel (a new ladder for the new lamps).
+    ipc::SimSnapshot high = stateWith(48.0f);
+    high.lamps.value.lights |= ipc::light::kHighBeam;
+    ASSERT_TRUE((*r)->render(high, ipc::Clock::now(), true, frames.back()));
   };
   std::vector<RenderedFrame> a, b;
   run(a);
@@ -253,6 +258,8 @@ TEST(PendingTables, AFogRampReadsTheFogLadder) {
   }
   EXPECT_FALSE(a[kSteady - 1].pending);
   EXPECT_EQ(a[kSteady - 1].fog_rungs, 0);  // the steady frames read the 80 m tables
+  EXPECT_TRUE(a.back().pending);
+  EXPECT_EQ(a.back().fog_rungs, 0);
   // The last ramp frame (50 m) against 50 m tables.
   std::vector<std::string> at50 = settings;
   at50.push_back("fog.visibility_m=50");
@@ -262,7 +269,8 @@ TEST(PendingTables, AFogRampReadsTheFogLadder) {
   RenderedFrame h;
   for (int k = 0; k < 3; ++k) ASSERT_TRUE((*r50)->render(stateWith(0.0f), ipc::Clock::now(), true, h));
   ASSERT_FALSE(h.pending);
-  const double p95 = p95Relative(luminance(a.back().layers.airlight), luminance(h.layers.airlight));
+  const RenderedFrame& at50Frame = a[kSteady + kRamp - 1];
+  const double p95 = p95Relative(luminance(at50Frame.layers.airlight), luminance(h.layers.airlight));
   const double p95Steady = p95Relative(luminance(a[kSteady - 1].layers.airlight), luminance(h.layers.airlight));
   std::printf("fog ramp 80 -> 50 m: %d of %d frames from two rungs; the 50 m frame against 50 m tables p95 %.2e "
               "(the 80 m frame: %.2e)\n",
