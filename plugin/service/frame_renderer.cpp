@@ -269,6 +269,7 @@ struct ChannelRenderer::Impl {
     bool ladder = false;
     std::vector<std::shared_ptr<const FogTables>> rungs;
     std::uint64_t rungsVersion = 0;
+    bool trafficLive = false;  ///< live traffic objects with a rig (their lamps go per pixel)
     bool pending = false;     ///< RenderedFrame::pending
     /// A table build this frame took (stage 1): it replaces `eval` when the frame's finish()
     /// starts, after the previous frame's airlight has read the old tables.
@@ -528,8 +529,8 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
                                            Begun& b) {
   // A frame whose fog the tables do not serve reads the two rungs around its K_t when both
   // exist for its fog's other fields and bending. Rungs are built one at a time in the
-  // background, when frames are cheap: while tables serve the fog, the rungs nearest it on both
-  // sides, up to fog_ladder_rungs; while the fog keeps changing on the ladder (two frames in a
+  // background, when frames are cheap: while tables serve the fog and no traffic is live, the
+  // rungs nearest it on both sides, up to fog_ladder_rungs; while the fog keeps changing on the ladder (two frames in a
   // row or more: a ramp, not a step, which the exact build after it serves), around where it
   // is heading. Frames off the ladder (per pixel) need the cores: no rung is started then. A
   // rung is taken as table builds are, free-running when done, lock-step and replay
@@ -592,10 +593,11 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
         startRung(pose, c);
         break;
       }
-  } else if (served && !rungBuilding.valid() && !building.valid() &&
+  } else if (served && !b.trafficLive && !rungBuilding.valid() && !building.valid() &&
              rungs.size() < static_cast<std::size_t>(config->fog_ladder_rungs)) {
-    // The tables serve the fog (a steady frame costs a few ms): the idle cores build the rungs
-    // nearest the fog, on both sides, so that the next change of fog starts on the ladder.
+    // The tables serve the fog and no traffic lamp goes per pixel (a frame costs a few ms): the
+    // idle cores build the rungs nearest the fog, on both sides, so that the next change of fog
+    // starts on the ladder.
     const double x = std::log(kt) / lr;  // the fog in rung units
     int best = m;
     double bestDistance = std::numeric_limits<double>::infinity();
@@ -861,6 +863,11 @@ Status ChannelRenderer::Impl::beginFrame(const ipc::SimSnapshot& state, ipc::Clo
   const VehiclePose pose = host ? poseOf(host->view->camera, vehicleCamera) : poseOf(ego);
   // Until the first lamp state the ego drives with low beams and position lamps.
   b.lights = state.lamps.stamp.valid ? state.lamps.value.lights : ipc::light::kInitialEgo;
+  // Live traffic with a rig: its lamps go per pixel, so the frame is not a cheap one (the fog
+  // ladder starts no rung around a steady fog then).
+  b.trafficLive = std::any_of(state.traffic.begin(), state.traffic.end(), [&](const ipc::TrafficEntry& e) {
+    return state.live(e, now) && config->rigFor(e.object.vehicle_class) != nullptr;
+  });
 
   // 1. Tables for the wanted fog and bending (built, awaited or still building).
   const TableKey want = wantedTables(state);
