@@ -108,12 +108,13 @@ double percentile(std::vector<double> v, double q) {
 }
 
 // Relative error of `value` against `ref` (luminance: mean of the channels) over the pixels
-// whose reference luminance exceeds the threshold.
+// whose reference luminance exceeds `floor` (cd/m²).
 constexpr double kRefThresholdCdM2 = 1e-4;
-ErrorStats relativeErrors(const std::vector<double>& value, const std::vector<double>& ref) {
+ErrorStats relativeErrors(const std::vector<double>& value, const std::vector<double>& ref,
+                          double floor = kRefThresholdCdM2) {
   std::vector<double> rel;
   for (std::size_t k = 0; k < ref.size(); ++k)
-    if (ref[k] > kRefThresholdCdM2) rel.push_back(std::abs(value[k] - ref[k]) / ref[k]);
+    if (ref[k] > floor) rel.push_back(std::abs(value[k] - ref[k]) / ref[k]);
   ErrorStats e;
   e.counted = rel.size();
   e.median = percentile(rel, 0.5);
@@ -1197,15 +1198,8 @@ json ladderRun(const Scene& still, const SurfaceBuffers& surface, unsigned threa
   // Against tables at the last frame's fog, every pixel above the same threshold.
   AirlightImage at;
   exact->evaluate(last, surface, SubsamplingOptions{}, at);
-  const std::vector<double> got = luminances(img.rgb), want = luminances(at.rgb);
-  const double floor = out["threshold_cd_m2"].get<double>();
-  std::vector<double> g, w;
-  for (std::size_t k = 0; k < want.size(); ++k)
-    if (want[k] > floor) {
-      g.push_back(got[k]);
-      w.push_back(want[k]);
-    }
-  out["vs_tables_at_fog"] = relativeErrors(g, w).toJson();
+  out["vs_tables_at_fog"] =
+      relativeErrors(luminances(img.rgb), luminances(at.rgb), out["threshold_cd_m2"].get<double>()).toJson();
   return out;
 }
 

@@ -622,9 +622,13 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
   }
   if (served || !onLadder) return Ok{};
   b.ladder = true;
-  b.rungs.clear();
-  for (const auto& [index, rung] : rungs) b.rungs.push_back(rung);
-  b.rungsVersion = rungsVersion;
+  // The slot keeps its copy of the set while the set is the same (a copy per change, not per
+  // frame): every change of `rungs` counts rungsVersion up, and a set is never empty here.
+  if (b.rungs.empty() || b.rungsVersion != rungsVersion) {
+    b.rungs.clear();
+    for (const auto& [index, rung] : rungs) b.rungs.push_back(rung);
+    b.rungsVersion = rungsVersion;
+  }
   if (!tablesBuilt) {
     // No tables' evaluator yet (the fog has changed since the start): one without tables of its
     // own, which reads the rungs (its lamps and pool; cheap).

@@ -424,7 +424,6 @@ TEST(AirlightImage, FogLadderReadsTwoRungsAroundTheFog) {
   const FastPathOptions& fast = rig.fast;
   const double kt = scene.fog.extinction_per_m;
   auto pool = std::make_shared<ThreadPool>(0);
-  auto sceneAt = [&](double k) { return rig.at(k); };
   AirlightImage exact;
   auto own = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, pool, fast);
   ASSERT_TRUE(own.has_value());
@@ -432,15 +431,15 @@ TEST(AirlightImage, FogLadderReadsTwoRungsAroundTheFog) {
   EXPECT_EQ(exact.fog_rungs, 0);
 
   constexpr double kRatio = 1.2;
-  auto lo = AirlightImageEvaluator::buildFogTables(sceneAt(kt / std::sqrt(kRatio)), fast, pool);
-  auto hi = AirlightImageEvaluator::buildFogTables(sceneAt(kt * std::sqrt(kRatio)), fast, pool);
+  auto lo = AirlightImageEvaluator::buildFogTables(rig.at(kt / std::sqrt(kRatio)), fast, pool);
+  auto hi = AirlightImageEvaluator::buildFogTables(rig.at(kt * std::sqrt(kRatio)), fast, pool);
   auto at = AirlightImageEvaluator::buildFogTables(scene, fast, pool);
   ASSERT_TRUE(lo.has_value() && hi.has_value() && at.has_value());
   EXPECT_NEAR(fogTablesExtinction(**lo), kt / std::sqrt(kRatio), 1e-15);
   EXPECT_GT(fogTablesBytes(**lo), 0u);
 
   // An evaluator whose own tables were made at 3 K_t, then given the ladder and K_t.
-  const Scene far = sceneAt(3.0 * kt);
+  const Scene far = rig.at(3.0 * kt);
   auto ev = AirlightImageEvaluator::build(far, AirlightMethod::Accurate, {}, pool, fast);
   ASSERT_TRUE(ev.has_value());
   AirlightImage img;
@@ -468,8 +467,8 @@ TEST(AirlightImage, FogLadderReadsTwoRungsAroundTheFog) {
     AirlightImage loImg;
     one->evaluate(far, surf, SubsamplingOptions{.full = true}, loImg);
     one->setFogLadder({*lo}, kRatio);
-    ASSERT_TRUE(one->setFog(sceneAt(kt / std::sqrt(kRatio)).fog));
-    one->evaluate(sceneAt(kt / std::sqrt(kRatio)), surf, SubsamplingOptions{.full = true}, loImg);
+    ASSERT_TRUE(one->setFog(rig.at(kt / std::sqrt(kRatio)).fog));
+    one->evaluate(rig.at(kt / std::sqrt(kRatio)), surf, SubsamplingOptions{.full = true}, loImg);
     EXPECT_EQ(loImg.fog_rungs, 1);
     EXPECT_GT(imageError(loImg, exact).first, 3.0 * p95);
   }

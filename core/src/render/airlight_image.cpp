@@ -1424,8 +1424,10 @@ struct LadderPick {
 std::optional<LadderPick> pickRungs(const State& st, const Lamps& lamps, const CameraFrame& cf) {
   const std::size_t nv = st.viewLamps.size();
   if (st.ladder.empty() || nv == 0) return std::nullopt;
-  std::vector<ViewKey> keys;
-  keys.reserve(nv);
+  // Per thread, kept: a ladder frame asks twice (the service's viewTablesReady, then the frame),
+  // and neither should allocate.
+  thread_local std::vector<ViewKey> keys;
+  keys.clear();
   for (std::size_t v = 0; v < nv; ++v) keys.push_back(viewKeyOf(lamps[st.viewLamps[v]], cf));
   const double kt = keys[0].kt;  // setFog gives every lamp the same fog
   auto fits = [&](const FogTables& r) {
