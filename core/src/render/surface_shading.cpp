@@ -276,13 +276,17 @@ class FogTile {
     fogLightBasis(0.0f, b0_, static_cast<float*>(nullptr));
   }
 
-  // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom): their planes (for shadeRow) and distances;
-  // then columns() gives their fog light, a part of the width at a time.
-  void begin(int j0, std::vector<float>& planeT, std::vector<std::int32_t>& planeIndex) {
+  // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom) of columns [x0, x1) (x0 a multiple of
+  // kFogTile): their planes (for shadeRow, row y's at planeT[(y − j0) · width()]) and distances,
+  // with the next band's first row and the next part's first column (nodes of the last cells);
+  // then columns(x0, x1) gives their fog light.
+  void begin(int j0, int x0, int x1, std::vector<float>& planeT, std::vector<std::int32_t>& planeIndex) {
     j0_ = j0;
     yEnd_ = std::min(j0 + kFogTile, h_ - 1);  // the band's last node row (the next band's first)
+    xs_ = x0;
+    cw_ = std::min(x1, w_ - 1) - x0 + 1;  // up to the last node column (the next part's first)
     const int nRows = yEnd_ - j0 + 1;
-    const auto W = static_cast<std::size_t>(w_);
+    const auto W = static_cast<std::size_t>(cw_), G = static_cast<std::size_t>(w_);
     planeT.resize(static_cast<std::size_t>(nRows) * W);
     planeIndex.resize(planeT.size());
     sc_.d.resize(planeT.size());
@@ -293,10 +297,11 @@ class FogTile {
     }
     for (int y = j0; y <= yEnd_; ++y) {
       const std::size_t r = static_cast<std::size_t>(y - j0) * W;
-      kernels::castPlanesRow(f_, y, w_, planeT.data() + r, planeIndex.data() + r);
+      kernels::castPlanesRow(f_, y, cw_, planeT.data() + r, planeIndex.data() + r, x0);
       const std::size_t src = g_.bottom_up ? static_cast<std::size_t>(h_ - 1 - y) : static_cast<std::size_t>(y);
+      const std::size_t g0 = G * src + static_cast<std::size_t>(x0);
       for (std::size_t x = 0; x < W; ++x) {
-        const float gd = g_.distance != nullptr ? g_.distance[W * src + x] : std::numeric_limits<float>::infinity();
+        const float gd = g_.distance != nullptr ? g_.distance[g0 + x] : std::numeric_limits<float>::infinity();
         sc_.d[r + x] = std::min(gd, planeT[r + x]);
       }
     }
@@ -309,6 +314,9 @@ class FogTile {
     sc_.s.clear();
     sc_.nd.clear();
   }
+
+  // Pixels a row of begin()'s planes and distances holds.
+  [[nodiscard]] std::size_t width() const { return static_cast<std::size_t>(cw_); }
 
   // The fog light of columns [x0, x1) of the band's rows into `rows` (row y's coefficient q at
   // rows[((y − j0) · nq + q) · stride + x − x0]); x0 a multiple of kFogTile.
@@ -333,11 +341,12 @@ class FogTile {
   FogTileScratch& sc_;
   float b1_[4], b0_[4];  // fogLightBasis's symmetric functions at μ = 1 and μ = 0
   int j0_ = 0, yEnd_ = 0, x0_ = 0;
+  int xs_ = 0, cw_ = 0;  // the first column begin() read, and how many
   float* rows_ = nullptr;
   [[nodiscard]] std::size_t nc() const { return nq_; }  // floats per node: every lamp's block
 
   [[nodiscard]] std::size_t pixel(int x, int y) const {
-    return static_cast<std::size_t>(y - j0_) * static_cast<std::size_t>(w_) + static_cast<std::size_t>(x);
+    return static_cast<std::size_t>(y - j0_) * static_cast<std::size_t>(cw_) + static_cast<std::size_t>(x - xs_);
   }
   [[nodiscard]] float dist(int x, int y) const { return sc_.d[pixel(x, y)]; }
   // The node at pixel (x, y) of the current lamp: its index (evaluated on first use).
@@ -571,39 +580,49 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
   out.distance.resize(w * h);
   const bool mesh = g.normal_rho_r != nullptr && g.rho_gb != nullptr && g.distance != nullptr;
   const bool fog = frame.fog_light.table != nullptr && !frame.fog_light.lamps.empty() && w > 0 && h > 0;
-  // Rows in bands of 8 (16 with the fog light: its tiles), a band per task: few enough tasks to
-  // hand out cheaply, enough of them (45–90 at 720 rows) to balance two to sixteen threads.
-  const std::size_t kBand = fog ? static_cast<std::size_t>(kFogTile) : 8;
-  const std::size_t bands = (h + kBand - 1) / kBand;
-  // With the fog light a band goes kFogColumns columns at a time (its coefficient rows, up to 16
-  // per lamp and pixel, stay in the core's cache between the grid that writes them and the
-  // kernel that reads them; a whole 1280 px band of them is ~4.5 MB).
+  // Rows in bands of 8, a band per task: few enough tasks to hand out cheaply, enough of them
+  // (90 at 720 rows) to balance two to sixteen threads. With the fog light a task is a part of
+  // kFogColumns columns of a band of kFogTile rows (its tiles): the part's coefficient rows (up to
+  // 16 per lamp and pixel) stay in the core's cache between the grid that writes them and the
+  // kernel that reads them, and the grid's cost, which gathers where silhouettes and the horizon
+  // are (one band of the bench scene at 1280×720 held 13 % of it), spreads over many tasks.
   const std::size_t nq = frame.fog_light.floats();
-  const std::size_t columns = fog ? std::min<std::size_t>(w, kFogColumns) : w, stride = columns + 64;
-  const float floor = fog && !frame.fog_light_exact ? fogLightFloor(frame, g) : 0.0f;
-  auto band = [&](std::size_t b) {
-    // The planes' distances and indices of the band's rows, and its fog light (sized once per thread).
-    thread_local std::vector<float> planeT, rows;
-    thread_local std::vector<std::int32_t> planeIndex;
-    thread_local FogTileScratch scratch;
-    const std::size_t j0 = b * kBand, j1 = std::min(h, (b + 1) * kBand);
-    if (fog) {
+  if (fog) {
+    const std::size_t columns = std::min<std::size_t>(w, kFogColumns), stride = columns + 64;
+    const std::size_t bands = (h + kFogTile - 1) / kFogTile, parts = (w + columns - 1) / columns;
+    const float floor = frame.fog_light_exact ? 0.0f : fogLightFloor(frame, g);
+    auto part = [&](std::size_t t) {
+      // The part's planes, distances and fog light (sized once per thread).
+      thread_local std::vector<float> planeT, rows;
+      thread_local std::vector<std::int32_t> planeIndex;
+      thread_local FogTileScratch scratch;
+      const std::size_t j0 = (t / parts) * kFogTile, j1 = std::min(h, j0 + kFogTile);
+      const std::size_t x0 = (t % parts) * columns, n = std::min(columns, w - x0);
       FogTile tile(frame, g, stride, floor, scratch);
-      tile.begin(static_cast<int>(j0), planeT, planeIndex);
-      for (std::size_t x0 = 0; x0 < w; x0 += columns) {
-        const std::size_t n = std::min(columns, w - x0);
-        tile.columns(static_cast<int>(x0), static_cast<int>(x0 + n), rows);
-        for (std::size_t j = j0; j < j1; ++j) {
-          const std::size_t src = g.bottom_up ? h - 1 - j : j;  // the G-buffer's row of image row j
-          const std::size_t p = w * src + x0, r = (j - j0) * w + x0;
-          kernels::shadeRow(frame, static_cast<int>(j), static_cast<int>(n), mesh ? g.normal_rho_r + 4 * p : nullptr,
-                            mesh ? g.rho_gb + 2 * p : nullptr, mesh ? g.distance + p : nullptr, planeT.data() + r,
-                            planeIndex.data() + r, out.rgb.data() + 3 * (w * j + x0), out.distance.data() + w * j + x0,
-                            rows.data() + (j - j0) * nq * stride, stride, static_cast<int>(x0));
-        }
+      tile.begin(static_cast<int>(j0), static_cast<int>(x0), static_cast<int>(x0 + n), planeT, planeIndex);
+      tile.columns(static_cast<int>(x0), static_cast<int>(x0 + n), rows);
+      const std::size_t width = tile.width();
+      for (std::size_t j = j0; j < j1; ++j) {
+        const std::size_t src = g.bottom_up ? h - 1 - j : j;  // the G-buffer's row of image row j
+        const std::size_t p = w * src + x0, r = (j - j0) * width;
+        kernels::shadeRow(frame, static_cast<int>(j), static_cast<int>(n), mesh ? g.normal_rho_r + 4 * p : nullptr,
+                          mesh ? g.rho_gb + 2 * p : nullptr, mesh ? g.distance + p : nullptr, planeT.data() + r,
+                          planeIndex.data() + r, out.rgb.data() + 3 * (w * j + x0), out.distance.data() + w * j + x0,
+                          rows.data() + (j - j0) * nq * stride, stride, static_cast<int>(x0));
       }
-      return;
-    }
+    };
+    if (pool != nullptr && pool->size() > 1) pool->parallelFor(bands * parts, part);
+    else
+      for (std::size_t t = 0; t < bands * parts; ++t) part(t);
+    return;
+  }
+  constexpr std::size_t kBand = 8;
+  const std::size_t bands = (h + kBand - 1) / kBand;
+  auto band = [&](std::size_t b) {
+    // The planes' distances and indices of the band's rows (sized once per thread).
+    thread_local std::vector<float> planeT;
+    thread_local std::vector<std::int32_t> planeIndex;
+    const std::size_t j0 = b * kBand, j1 = std::min(h, (b + 1) * kBand);
     if (planeT.size() < w) {
       planeT.resize(w);
       planeIndex.resize(w);

@@ -139,7 +139,7 @@ HWY_INLINE VF Tabulated(DF d, DI di, const ShadeTable& tb, VF wx, VF wy, VF wz) 
 
 // The scene's planes along one row's rays, in double (the GL plane shader's arithmetic):
 // nearest t > 0 and its plane, or +inf and −1.
-void CastPlanesRowImpl(const ShadeFrame& fr, int j, int count, float* HWY_RESTRICT tOut,
+void CastPlanesRowImpl(const ShadeFrame& fr, int j, int x0, int count, float* HWY_RESTRICT tOut,
                        std::int32_t* HWY_RESTRICT planeOut) {
   if (fr.planes.empty()) {
     for (int i = 0; i < count; ++i) {
@@ -156,7 +156,7 @@ void CastPlanesRowImpl(const ShadeFrame& fr, int j, int count, float* HWY_RESTRI
   HWY_ALIGN double t[hn::MaxLanes(dd)];
   HWY_ALIGN double idx[hn::MaxLanes(dd)];
   for (int i = 0; i < count; i += N) {
-    const auto lx = hn::Sub(hn::Set(dd, fr.cx), hn::Iota(dd, static_cast<double>(i) + 0.5));
+    const auto lx = hn::Sub(hn::Set(dd, fr.cx), hn::Iota(dd, static_cast<double>(x0 + i) + 0.5));
     auto ox = hn::MulAdd(hn::Set(dd, R[0]), f, hn::MulAdd(hn::Set(dd, R[3]), lx, hn::Mul(hn::Set(dd, R[6]), lyv)));
     auto oy = hn::MulAdd(hn::Set(dd, R[1]), f, hn::MulAdd(hn::Set(dd, R[4]), lx, hn::Mul(hn::Set(dd, R[7]), lyv)));
     auto oz = hn::MulAdd(hn::Set(dd, R[2]), f, hn::MulAdd(hn::Set(dd, R[5]), lx, hn::Mul(hn::Set(dd, R[8]), lyv)));
@@ -383,8 +383,8 @@ namespace fogbeam::kernels {
 HWY_EXPORT(ShadeRowImpl);
 HWY_EXPORT(CastPlanesRowImpl);
 
-void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int32_t* plane) {
-  HWY_DYNAMIC_DISPATCH(CastPlanesRowImpl)(frame, j, count, t, plane);
+void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int32_t* plane, int x0) {
+  HWY_DYNAMIC_DISPATCH(CastPlanesRowImpl)(frame, j, x0, count, t, plane);
 }
 
 void shadeRow(const ShadeFrame& frame, int j, int count, const float* normalRhoR, const float* rhoGB,

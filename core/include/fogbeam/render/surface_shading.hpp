@@ -123,10 +123,10 @@ struct ShadeFrame {
   bool fog_light_exact = false;
 };
 
-/// The scene's planes and body quads along the `count` pixel rays of image row j, in double as the GL plane
-/// shader and Camera::rayDirection: the nearest t > 0 [m] (float; +inf: none) and its plane's
-/// index (−1: none). SIMD, dispatched at run time.
-void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int32_t* plane);
+/// The scene's planes and body quads along the `count` pixel rays of image row j from column x0
+/// on, in double as the GL plane shader and Camera::rayDirection: the nearest t > 0 [m] (float;
+/// +inf: none) and its plane's index (−1: none), pixel x0 + i at t[i]. SIMD, dispatched at run time.
+void castPlanesRow(const ShadeFrame& frame, int j, int count, float* t, std::int32_t* plane, int x0 = 0);
 
 /// Shades the `count` pixels of image row j (column 0 first): at each pixel the nearer of the
 /// geometry buffer's surface (interleaved rows in SurfaceGBufferView's layouts; all three null:
