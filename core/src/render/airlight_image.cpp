@@ -227,6 +227,11 @@ struct AirlightImageEvaluator::State {
   // The same per cell of the lattice's second level (FrameCtx::hyperX × hyperY, 4 × 4 blocks).
   std::vector<std::uint8_t> hyperPass;
   std::size_t scratchBatch = 0, scratchTile = 0, scratchNq = 0;
+  // The tiles' thread time in the last frame (s) and the order this frame takes them in: the
+  // costliest first, so that no thread is left with a costly tile when the others are done
+  // (runTiles). Sized when the tile count changes.
+  std::vector<double> tileSeconds;
+  std::vector<std::uint32_t> tileOrder;
 };
 
 struct FogTables {
@@ -389,6 +394,7 @@ struct FrameCtx {
   int tile = kTile;       // tile size, pixels (a multiple of step)
   int tilesX = 1, tilesY = 1;
   int coarseX = 1, coarseY = 1;  // coarse grid corners along x and y
+  std::size_t chunk = kChunk;     // coarse-grid corners per task (coarseChunk)
   float edgeFloor = 0.0f;  // 1/d beyond which distance edges are ignored
   // Moving lamps (pencil path) judged and interpolated each on its own in the tiles: their
   // count (0: off, every evaluated pixel evaluates every lamp), and per lamp the factor from
@@ -1871,11 +1877,42 @@ std::size_t tileCount(const FrameCtx& f) {
   return static_cast<std::size_t>(f.tilesX) * static_cast<std::size_t>(f.tilesY);
 }
 
+// Coarse-grid corners per task: at least four tasks per thread where the grid allows (a frame's
+// moving lamps gather in a few places, and with a handful of large tasks one thread is left with
+// them), in whole SIMD vectors of any width (multiples of 64), 256 to kChunk.
+std::size_t coarseChunk(const FrameCtx& f, std::size_t threads) {
+  const std::size_t n = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
+  const std::size_t want = (n + 4 * threads - 1) / (4 * std::max<std::size_t>(threads, 1));
+  return std::clamp<std::size_t>((want + 63) / 64 * 64, 256, kChunk);
+}
+
+// Runs fn(tile, worker) over every tile, the costliest of the last frame first (State::tileOrder;
+// the image does not depend on the order: each tile writes its own pixels), and keeps each
+// tile's thread time for the next frame.
+template <class Fn>
+void runTiles(State& st, const FrameCtx& f, ThreadPool& pool, const Fn& fn) {
+  const std::size_t n = tileCount(f);
+  if (st.tileOrder.size() != n) {
+    st.tileOrder.resize(n);
+    st.tileSeconds.assign(n, 0.0);
+    for (std::size_t t = 0; t < n; ++t) st.tileOrder[t] = static_cast<std::uint32_t>(t);
+  } else {
+    std::sort(st.tileOrder.begin(), st.tileOrder.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return st.tileSeconds[a] != st.tileSeconds[b] ? st.tileSeconds[a] > st.tileSeconds[b] : a < b;
+    });
+  }
+  State* sp = &st;
+  pool.parallelForIndexed(n, [sp, &fn](std::size_t k, unsigned w) {
+    const std::size_t t = sp->tileOrder[k];
+    const auto t0 = std::chrono::steady_clock::now();
+    fn(t, w);
+    sp->tileSeconds[t] = since(t0);
+  });
+}
+
 // Stage "full tiles" (SubsamplingOptions::full): every pixel evaluated, tile by tile.
 void evaluateFullTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
-  const ImageJob job{&st, &f};
-  const ImageJob* jp = &job;
-  pool.parallelForIndexed(tileCount(f), [jp](std::size_t t, unsigned w) { fullTile(*jp->f, jp->st->scratch[w], t); });
+  runTiles(st, f, pool, [&](std::size_t t, unsigned w) { fullTile(f, st.scratch[w], t); });
 }
 
 // The lattice passes' batches: coarse node (i, j) (pixel), `slot` its index from the chunk's
@@ -1965,13 +2002,13 @@ void hyperLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
   // The first level's anchors that the first pass left: interpolated per lamp where their cell
   // (or, on a side, a cell either side) passes, else evaluated; added to the coarse grid.
   const std::size_t nCoarse = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
-  pool.parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
+  pool.parallelForIndexed((nCoarse + f.chunk - 1) / f.chunk, [jp](std::size_t c, unsigned w) {
     const FrameCtx& fc = *jp->f;
     State& s = *jp->st;
     Scratch& sc = s.scratch[w];
     const std::size_t m = fc.nq;
-    const std::size_t b0 = c * kChunk;
-    const std::size_t e = std::min(b0 + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
+    const std::size_t b0 = c * fc.chunk;
+    const std::size_t e = std::min(b0 + fc.chunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
     auto passes = [&](int a, int b, std::size_t q) {
       return a >= 0 && b >= 0 && a < fc.hyperX && b < fc.hyperY &&
              s.hyperPass[(static_cast<std::size_t>(b) * static_cast<std::size_t>(fc.hyperX) + static_cast<std::size_t>(a)) * m + q] != 0;
@@ -2069,13 +2106,13 @@ void movingLattice(State& st, const FrameCtx& f, ThreadPool& pool) {
   // The nodes between corners: interpolated per lamp where a neighbouring super-cell passes,
   // else evaluated; either way their moving lamps' light is added to the coarse grid.
   const std::size_t nCoarse = static_cast<std::size_t>(f.coarseX) * static_cast<std::size_t>(f.coarseY);
-  pool.parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
+  pool.parallelForIndexed((nCoarse + f.chunk - 1) / f.chunk, [jp](std::size_t c, unsigned w) {
     const FrameCtx& fc = *jp->f;
     State& s = *jp->st;
     Scratch& sc = s.scratch[w];
     const std::size_t m = fc.nq;
-    const std::size_t b0 = c * kChunk;
-    const std::size_t e = std::min(b0 + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
+    const std::size_t b0 = c * fc.chunk;
+    const std::size_t e = std::min(b0 + fc.chunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
     auto passes = [&](int a, int b, std::size_t q) {
       return a >= 0 && b >= 0 && a < fc.superX && b < fc.superY &&
              s.superPass[(static_cast<std::size_t>(b) * static_cast<std::size_t>(fc.superX) + static_cast<std::size_t>(a)) * m + q] != 0;
@@ -2119,11 +2156,11 @@ void evaluateCoarseGrid(State& st, const FrameCtx& f, ThreadPool& pool) {
   st.coarseMl.resize(f.nq * nCoarse);
   const ImageJob job{&st, &f};
   const ImageJob* jp = &job;
-  pool.parallelForIndexed((nCoarse + kChunk - 1) / kChunk, [jp](std::size_t c, unsigned w) {
+  pool.parallelForIndexed((nCoarse + f.chunk - 1) / f.chunk, [jp](std::size_t c, unsigned w) {
     const FrameCtx& fc = *jp->f;
     Scratch& sc = jp->st->scratch[w];
-    const std::size_t b = c * kChunk;
-    const std::size_t e = std::min(b + kChunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
+    const std::size_t b = c * fc.chunk;
+    const std::size_t e = std::min(b + fc.chunk, static_cast<std::size_t>(fc.coarseX) * static_cast<std::size_t>(fc.coarseY));
     sc.n = 0;
     for (std::size_t k = b; k < e; ++k) {
       const int i = std::min(static_cast<int>(k % static_cast<std::size_t>(fc.coarseX)) * fc.step, fc.cam->width - 1);
@@ -2165,11 +2202,7 @@ void evaluateCoarseGrid(State& st, const FrameCtx& f, ThreadPool& pool) {
 // Stage "tiles": each tile refined from the coarse grid, filled and written to the image by one
 // thread (subsampleTile: the header comment's block test, level by level).
 void refineTiles(State& st, const FrameCtx& f, ThreadPool& pool) {
-  const ImageJob job{&st, &f};
-  const ImageJob* jp = &job;
-  pool.parallelForIndexed(tileCount(f), [jp](std::size_t t, unsigned w) {
-    subsampleTile(*jp->f, jp->st->scratch[w], jp->st->coarse, t);
-  });
+  runTiles(st, f, pool, [&](std::size_t t, unsigned w) { subsampleTile(f, st.scratch[w], st.coarse, t); });
 }
 
 // The frame's figures (AirlightImage): pixels evaluated, and thread time per stage divided by
@@ -2225,7 +2258,8 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
 
   // The image: tiling and per-thread memory, then the pixels (every one, or the coarse grid and
   // the tiles' refinement).
-  const FrameCtx f = planImage(st, lamps_, scene, surface, opt, out, cf);
+  FrameCtx f = planImage(st, lamps_, scene, surface, opt, out, cf);
+  f.chunk = coarseChunk(f, pool_->size());
   ensureScratch(st, f, pool_->size(), lamps_.size());
   if (opt.full) {
     evaluateFullTiles(st, f, *pool_);
