@@ -228,6 +228,21 @@ struct ChannelRenderer::Impl {
   /// to the eye holds (the ego's lamps while they do not bend), which are most of a per-pixel
   /// frame's cost; rebuilt when the phase function changes.
   std::unique_ptr<AirlightImageEvaluator> pendingEval;
+  /// The traffic lamps' evaluator, kept from frame to frame while the traffic's lamps are the
+  /// same (profile, colour and mount, in order) and its pool too: each frame gives it the fog
+  /// and the poses (a kept evaluator shows moving lamps as a new one does:
+  /// AirlightImage.AFogChangeKeepsTheSpokesOfLampsFixedToTheEye). Building one per frame
+  /// (per-lamp evaluators, pencils, per-thread memory of ~0.8 MB a thread) cost 13–19 % of a
+  /// table frame's airlight at 1280×720 (docs/service.md). Rebuilt when a vehicle comes or goes,
+  /// switches a lamp or the phase function changes.
+  std::unique_ptr<AirlightImageEvaluator> trafficEval;
+  struct TrafficLampKey {
+    const Profile* profile = nullptr;
+    glm::dvec3 color{0.0};
+    LampMount mount = LampMount::World;
+  };
+  std::vector<TrafficLampKey> trafficKeys;  ///< trafficEval's lamps, scene order
+  const ThreadPool* trafficPool = nullptr;   ///< the pool trafficEval runs on
   TableKey current;
   std::future<Result<AirlightImageEvaluator>> building;  ///< tables for `next`, off the frame thread
   TableKey next;
@@ -785,9 +800,23 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
     // Traffic lamps move relative to the eye: no view tables, so measured profiles go per pixel
     // through the pencil integrator or per ray ([render] moving_lamps, docs/airlight.md);
     // per-lamp tables come from the evaluators' caches, the pool is the frame's.
-    auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, b.useTables ? eval->pool() : framePool, fast);
-    if (!te) return te.error();
-    te->evaluate(traffic, *surf, subsampling, trafficAir);
+    const std::shared_ptr<ThreadPool>& pool = b.useTables ? eval->pool() : framePool;
+    bool kept = trafficEval && trafficPool == pool.get() && trafficKeys.size() == traffic.lamps.size();
+    for (std::size_t i = 0; kept && i < traffic.lamps.size(); ++i) {
+      const SceneLamp& l = traffic.lamps[i];
+      const TrafficLampKey& k = trafficKeys[i];
+      kept = k.profile == l.lamp.profile.get() && k.color == l.lamp.color && k.mount == l.mount;
+    }
+    kept = kept && trafficEval->setFog(traffic.fog) && trafficEval->setLampPoses(traffic);
+    if (!kept) {
+      auto te = AirlightImageEvaluator::build(traffic, method, AirlightOptions{}, pool, fast);
+      if (!te) return te.error();
+      trafficEval = std::make_unique<AirlightImageEvaluator>(std::move(te).value());
+      trafficPool = pool.get();
+      trafficKeys.clear();
+      for (const SceneLamp& l : traffic.lamps) trafficKeys.push_back({l.lamp.profile.get(), l.lamp.color, l.mount});
+    }
+    trafficEval->evaluate(traffic, *surf, subsampling, trafficAir);
     out.traffic_evaluated = trafficAir.evaluated;
     for (std::size_t k = 0; k < air.rgb.size(); ++k) air.rgb[k] += trafficAir.rgb[k];
   }
