@@ -272,7 +272,7 @@ struct ChannelRenderer::Impl {
   std::uint32_t egoLightBits = 0, rungLights = 0, rungBuildLights = 0;
   std::uint64_t ladderMisses = 0;  ///< ladder frames the evaluator could not serve (per pixel instead)
 
-  AirlightImage air, trafficAir;
+  AirlightImage air;
 
   /// A frame between begin() and finish(): what stages 1–3 decided and made, for stages 4–6.
   /// Two slots, so that frame N+1 can be begun while frame N is finished on another thread.
@@ -816,21 +816,10 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
       trafficKeys.clear();
       for (const SceneLamp& l : traffic.lamps) trafficKeys.push_back({l.lamp.profile.get(), l.lamp.color, l.mount});
     }
-    trafficEval->evaluate(traffic, *surf, subsampling, trafficAir);
-    out.traffic_evaluated = trafficAir.evaluated;
-    // The two images summed on the frame's pool (2.8 M floats at 1280×720: ~1 ms on one core).
-    // One pointer captured: std::function keeps it without allocating.
-    constexpr std::size_t kSumChunk = std::size_t{1} << 16;
-    const struct {
-      float* dst;
-      const float* add;
-      std::size_t n;
-    } sum{air.rgb.data(), trafficAir.rgb.data(), air.rgb.size()};
-    const auto* sp = &sum;
-    pool->parallelFor((sum.n + kSumChunk - 1) / kSumChunk, [sp](std::size_t c) {
-      const std::size_t e = std::min(sp->n, (c + 1) * kSumChunk);
-      for (std::size_t k = c * kSumChunk; k < e; ++k) sp->dst[k] += sp->add[k];
-    });
+    // Added onto the world and ego lamps' image as its tiles are written: no second image, and
+    // no pass to sum two (2.8 M floats at 1280×720).
+    trafficEval->evaluate(traffic, *surf, subsampling, air, AirlightImageEvaluator::Write::Add);
+    out.traffic_evaluated = air.evaluated;
   }
   return Ok{};
 }

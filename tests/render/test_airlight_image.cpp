@@ -610,6 +610,47 @@ TEST(AirlightImage, SplittingEveryBlockGivesTheFullImageAtAnySize) {
   }
 }
 
+// Write::Add (the service's traffic lamps onto its world and ego lamps' image): bit for bit the
+// sum of the two images each evaluator writes alone, subsampled and on every pixel, at a size
+// whose last tiles are partial; an image of another size is replaced, not added to.
+TEST(AirlightImage, AddingAnEvaluatorsImageIsTheSumOfTheTwoImages) {
+  Scene scene = nightRoad(203, 117);
+  Scene street = scene, cars = scene;
+  street.lamps = {scene.lamps[4]};
+  cars.lamps = {scene.lamps[2], scene.lamps[3]};
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  auto a = AirlightImageEvaluator::build(street, AirlightMethod::Accurate, {}, 2, testFastPath());
+  auto b = AirlightImageEvaluator::build(cars, AirlightMethod::Accurate, {}, 2, testFastPath());
+  ASSERT_TRUE(a.has_value() && b.has_value());
+  for (const bool full : {false, true}) {
+    SubsamplingOptions opt;
+    opt.full = full;
+    AirlightImage alone, carsAlone, sum;
+    a->evaluate(street, surf, opt, alone);
+    b->evaluate(cars, surf, opt, carsAlone);
+    a->evaluate(street, surf, opt, sum);
+    b->evaluate(cars, surf, opt, sum, AirlightImageEvaluator::Write::Add);
+    ASSERT_EQ(sum.rgb.size(), alone.rgb.size());
+    std::size_t differ = 0, lit = 0;
+    for (std::size_t k = 0; k < sum.rgb.size(); ++k) {
+      differ += sum.rgb[k] != alone.rgb[k] + carsAlone.rgb[k];
+      lit += carsAlone.rgb[k] > 1e-3f && alone.rgb[k] > 1e-3f;
+    }
+    EXPECT_EQ(differ, 0u) << (full ? "every pixel" : "subsampled");
+    EXPECT_GT(lit, sum.rgb.size() / 2);  // both sets of lamps light most of the image
+    EXPECT_EQ(sum.evaluated, carsAlone.evaluated);  // the figures are the second call's
+  }
+  AirlightImage small;
+  small.width = 10;
+  small.height = 10;
+  small.rgb.assign(300, 7.0f);
+  AirlightImage carsAlone;
+  b->evaluate(cars, surf, SubsamplingOptions{}, carsAlone);
+  b->evaluate(cars, surf, SubsamplingOptions{}, small, AirlightImageEvaluator::Write::Add);
+  EXPECT_EQ(small.rgb, carsAlone.rgb);
+}
+
 // Vehicle lamps of one colour are read from one merged table (their frustum tables summed):
 // the image with both lamps equals the sum of the images with each alone, and switching a lamp
 // off and on again restores the image, i.e. the merged table follows the lamps' switching.

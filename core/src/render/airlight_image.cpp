@@ -387,6 +387,7 @@ struct FrameCtx {
   const Camera* cam;
   const SurfaceBuffers* surf;
   AirlightImage* out;
+  bool add = false;  // Write::Add: the pixels go onto out's values instead of replacing them
   kernels::PixelGeometry geo;
   const SubsamplingOptions* opt;
   PixelRays rays;         // cam's pixel rays (rayDirection without its tangents per call)
@@ -869,9 +870,15 @@ void fullTile(const FrameCtx& f, Scratch& sc, std::size_t t) {
   for (int j = tv.y0; j < tv.y1; ++j) {
     float* dst = f.out->rgb.data() + 3 * f.idx(tv.x0, j);
     for (int i = tv.x0; i < tv.x1; ++i, ++k) {
-      dst[0] = sc.r[k];
-      dst[1] = sc.g[k];
-      dst[2] = sc.b[k];
+      if (f.add) {
+        dst[0] += sc.r[k];
+        dst[1] += sc.g[k];
+        dst[2] += sc.b[k];
+      } else {
+        dst[0] = sc.r[k];
+        dst[1] = sc.g[k];
+        dst[2] = sc.b[k];
+      }
       dst += 3;
     }
   }
@@ -1164,8 +1171,10 @@ void subsampleTile(const FrameCtx& f, Scratch& sc, const std::vector<float>& coa
   for (const Block& bl : sc.layered) fillLayeredLeaf(f, sc, tv, bl);
   for (int j = tv.y0; j < tv.y1; ++j) {
     const std::size_t at = tv.at(tv.x0, j);
-    kernels::interleaveRgb(sc.pr.data() + at, sc.pg.data() + at, sc.pb.data() + at,
-                           static_cast<std::size_t>(tv.x1 - tv.x0), f.out->rgb.data() + 3 * f.idx(tv.x0, j));
+    float* dst = f.out->rgb.data() + 3 * f.idx(tv.x0, j);
+    const auto m = static_cast<std::size_t>(tv.x1 - tv.x0);
+    if (f.add) kernels::interleaveAddRgb(sc.pr.data() + at, sc.pg.data() + at, sc.pb.data() + at, m, dst);
+    else kernels::interleaveRgb(sc.pr.data() + at, sc.pg.data() + at, sc.pb.data() + at, m, dst);
   }
   kernels::flushStreams();  // the image is read by other threads once the frame is done
   sc.fillSeconds += since(tf);
@@ -1790,7 +1799,7 @@ void locateLampImages(State& st, const Lamps& lamps, const CameraFrame& cf) {
 FrameCtx planImage(const State& st, const Lamps& lamps, const Scene& scene, const SurfaceBuffers& surface,
                    const SubsamplingOptions& opt, AirlightImage& out, const CameraFrame& cf) {
   const Camera& cam = cf.cam;
-  FrameCtx f{&st, &lamps, &cam, &surface, &out,
+  FrameCtx f{&st, &lamps, &cam, &surface, &out, false,
              kernels::PixelGeometry{static_cast<float>(cf.principal.x), static_cast<float>(cf.principal.y),
                                     static_cast<float>(1.0 / cf.focal)},
              &opt, PixelRays(cam)};
@@ -2228,15 +2237,17 @@ void reportFigures(const State& st, std::size_t threadCount, AirlightImage& out)
 }  // namespace
 
 void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt,
-                                      AirlightImage& out) {
+                                      AirlightImage& out, Write write) {
   const auto t0 = std::chrono::steady_clock::now();
   State& st = *state_;
   const CameraFrame cf(scene.camera);
   const auto n = static_cast<std::size_t>(cf.cam.width) * static_cast<std::size_t>(cf.cam.height);
+  bool add = write == Write::Add;
   if (out.width != cf.cam.width || out.height != cf.cam.height || out.rgb.size() != 3 * n) {
     out.width = cf.cam.width;
     out.height = cf.cam.height;
     out.rgb.assign(3 * n, 0.0f);
+    add = false;  // nothing there to add to
   }
 
   // Lamps and tables for this camera pose: what the kernels read.
@@ -2259,6 +2270,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   // The image: tiling and per-thread memory, then the pixels (every one, or the coarse grid and
   // the tiles' refinement).
   FrameCtx f = planImage(st, lamps_, scene, surface, opt, out, cf);
+  f.add = add;
   f.chunk = coarseChunk(f, pool_->size());
   ensureScratch(st, f, pool_->size(), lamps_.size());
   if (opt.full) {

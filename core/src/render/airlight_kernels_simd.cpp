@@ -418,6 +418,24 @@ void InterleaveRgb(const float* r, const float* g, const float* b, std::size_t n
   }
 }
 
+void InterleaveAddRgb(const float* r, const float* g, const float* b, std::size_t n, float* out) {
+  const DF d;
+  const std::size_t N = hn::Lanes(d);
+  std::size_t i = 0;
+  for (; i + N <= n; i += N) {
+    float* o = out + 3 * i;
+    hn::Vec<DF> vr, vg, vb;
+    hn::LoadInterleaved3(d, o, vr, vg, vb);
+    hn::StoreInterleaved3(hn::Add(vr, hn::LoadU(d, r + i)), hn::Add(vg, hn::LoadU(d, g + i)),
+                          hn::Add(vb, hn::LoadU(d, b + i)), d, o);
+  }
+  for (; i < n; ++i) {
+    out[3 * i] += r[i];
+    out[3 * i + 1] += g[i];
+    out[3 * i + 2] += b[i];
+  }
+}
+
 const char* TargetNameHere() { return hwy::TargetName(HWY_TARGET); }
 
 }  // namespace fogbeam::kernels::HWY_NAMESPACE
@@ -433,6 +451,7 @@ HWY_EXPORT(DistanceEdgeBits);
 HWY_EXPORT(InverseDistances);
 HWY_EXPORT(FillBlocks);
 HWY_EXPORT(InterleaveRgb);
+HWY_EXPORT(InterleaveAddRgb);
 
 void distanceEdgeBits(const float* up, const float* c, const float* dn, std::size_t n, float tol, float floor,
                       std::uint64_t* bits) {
@@ -449,6 +468,10 @@ void fillBlocks(const FillBlock* blocks, std::size_t n, float* r, float* g, floa
 
 void interleaveRgb(const float* r, const float* g, const float* b, std::size_t n, float* out) {
   HWY_DYNAMIC_DISPATCH(InterleaveRgb)(r, g, b, n, out);
+}
+
+void interleaveAddRgb(const float* r, const float* g, const float* b, std::size_t n, float* out) {
+  HWY_DYNAMIC_DISPATCH(InterleaveAddRgb)(r, g, b, n, out);
 }
 
 void flushStreams() { hwy::FlushStream(); }

@@ -276,9 +276,7 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
         t->norm_[(iT * bins + k) * kCoefficients + q] = env > 0.0 ? c[q] / env : 0.0;
     }
   };
-  if (pool != nullptr && pool->size() > 1) pool->parallelFor(kTNodes, node);
-  else
-    for (std::size_t i = 0; i < kTNodes; ++i) node(i);
+  parallelFor(pool, kTNodes, node);
   // The dense table the frames read: the log-linear interpolation above, resampled where linear
   // interpolation is within 0.1 % of it (T every 2^(1/16) below 1, every 1/16 above), so that a
   // look-up is a lerp of two rows, without an exp per bin.
@@ -430,9 +428,7 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
     }
     std::copy_n(&m->v_[(ia * nB) * bins * kFloats], bins * kFloats, &m->v_[(ia * nB + nB - 1) * bins * kFloats]);
   };
-  if (pool != nullptr && pool->size() > 1) pool->parallelFor(static_cast<std::size_t>(m->nA_), row);
-  else
-    for (std::size_t ia = 0; ia < static_cast<std::size_t>(m->nA_); ++ia) row(ia);
+  parallelFor(pool, static_cast<std::size_t>(m->nA_), row);
   return m;
 }
 

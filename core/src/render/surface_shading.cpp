@@ -279,11 +279,12 @@ class FogTile {
   // Rows j0 … j0 + kFogTile − 1 (fewer at the bottom) of columns [x0, x1) (x0 a multiple of
   // kFogTile): their planes (for shadeRow, row y's at planeT[(y − j0) · width()]) and distances,
   // with the next band's first row and the next part's first column (nodes of the last cells);
-  // then columns(x0, x1) gives their fog light.
+  // then columns() gives their fog light.
   void begin(int j0, int x0, int x1, std::vector<float>& planeT, std::vector<std::int32_t>& planeIndex) {
     j0_ = j0;
     yEnd_ = std::min(j0 + kFogTile, h_ - 1);  // the band's last node row (the next band's first)
     xs_ = x0;
+    xe_ = x1;
     cw_ = std::min(x1, w_ - 1) - x0 + 1;  // up to the last node column (the next part's first)
     const int nRows = yEnd_ - j0 + 1;
     const auto W = static_cast<std::size_t>(cw_), G = static_cast<std::size_t>(w_);
@@ -318,18 +319,17 @@ class FogTile {
   // Pixels a row of begin()'s planes and distances holds.
   [[nodiscard]] std::size_t width() const { return static_cast<std::size_t>(cw_); }
 
-  // The fog light of columns [x0, x1) of the band's rows into `rows` (row y's coefficient q at
-  // rows[((y − j0) · nq + q) · stride + x − x0]); x0 a multiple of kFogTile.
-  void columns(int x0, int x1, std::vector<float>& rows) {
+  // The fog light of begin()'s columns [x0, x1) of the band's rows into `rows` (row y's
+  // coefficient q at rows[((y − j0) · nq + q) · stride + x − x0]).
+  void columns(std::vector<float>& rows) {
     rows.resize(static_cast<std::size_t>(kFogTile) * nq_ * stride_);
     rows_ = rows.data();
-    x0_ = x0;
     if (f_.fog_light_exact) {
       for (int y = j0_; y < std::min(j0_ + kFogTile, h_); ++y)
-        for (int x = x0; x < x1; ++x) put(x, y, node(x, y));
+        for (int x = xs_; x < xe_; ++x) put(x, y, node(x, y));
       return;
     }
-    for (int xa = x0; xa < x1; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0_, yEnd_);
+    for (int xa = xs_; xa < xe_; xa += kFogTile) cell(xa, std::min(xa + kFogTile, w_ - 1), j0_, yEnd_);
   }
 
  private:
@@ -340,8 +340,8 @@ class FogTile {
   float mfp_, floor_;
   FogTileScratch& sc_;
   float b1_[4], b0_[4];  // fogLightBasis's symmetric functions at μ = 1 and μ = 0
-  int j0_ = 0, yEnd_ = 0, x0_ = 0;
-  int xs_ = 0, cw_ = 0;  // the first column begin() read, and how many
+  int j0_ = 0, yEnd_ = 0;
+  int xs_ = 0, xe_ = 0, cw_ = 0;  // the part's columns [xs_, xe_), and how many begin() read (one more but at the image's edge)
   float* rows_ = nullptr;
   [[nodiscard]] std::size_t nc() const { return nq_; }  // floats per node: every lamp's block
 
@@ -370,7 +370,7 @@ class FogTile {
   [[nodiscard]] const float* coef(std::size_t n) const { return sc_.s.data() + nc() * n; }
   [[nodiscard]] float nodeDistance(std::size_t n) const { return sc_.nd[n]; }
   float* out(int x, int y, std::size_t q) {
-    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + q) * stride_ + static_cast<std::size_t>(x - x0_);
+    return rows_ + (static_cast<std::size_t>(y - j0_) * nq_ + q) * stride_ + static_cast<std::size_t>(x - xs_);
   }
   void put(int x, int y, std::size_t n) {
     const float* c = coef(n);
@@ -600,7 +600,7 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
       const std::size_t x0 = (t % parts) * columns, n = std::min(columns, w - x0);
       FogTile tile(frame, g, stride, floor, scratch);
       tile.begin(static_cast<int>(j0), static_cast<int>(x0), static_cast<int>(x0 + n), planeT, planeIndex);
-      tile.columns(static_cast<int>(x0), static_cast<int>(x0 + n), rows);
+      tile.columns(rows);
       const std::size_t width = tile.width();
       for (std::size_t j = j0; j < j1; ++j) {
         const std::size_t src = g.bottom_up ? h - 1 - j : j;  // the G-buffer's row of image row j
@@ -611,9 +611,7 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
                           rows.data() + (j - j0) * nq * stride, stride, static_cast<int>(x0));
       }
     };
-    if (pool != nullptr && pool->size() > 1) pool->parallelFor(bands * parts, part);
-    else
-      for (std::size_t t = 0; t < bands * parts; ++t) part(t);
+    parallelFor(pool, bands * parts, part);
     return;
   }
   constexpr std::size_t kBand = 8;
@@ -635,9 +633,7 @@ void SurfaceShader::shade(const kernels::ShadeFrame& frame, const SurfaceGBuffer
                         planeIndex.data(), out.rgb.data() + 3 * w * j, out.distance.data() + w * j);
     }
   };
-  if (pool != nullptr && pool->size() > 1) pool->parallelFor(bands, band);
-  else
-    for (std::size_t b = 0; b < bands; ++b) band(b);
+  parallelFor(pool, bands, band);
 }
 
 void SurfaceShader::render(const Scene& scene, kernels::ShadeFrame& frame, SurfaceBuffers& out, ThreadPool* pool) {

@@ -186,8 +186,18 @@ class AirlightImageEvaluator {
                                                             const FastPathOptions& fast = {});
   [[nodiscard]] const std::shared_ptr<ThreadPool>& pool() const noexcept { return pool_; }
 
-  /// Fills `out` for the scene's camera using `surface.distance` (+inf = sky).
-  void evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt, AirlightImage& out);
+  /// How evaluate() writes `out.rgb`.
+  enum class Write {
+    Replace,  ///< the image is this evaluator's lamps' airlight
+    /// this evaluator's lamps' airlight is added to the image already there (another
+    /// evaluator's lamps, same camera): one image for two sets of lamps, without a second
+    /// image and a pass to sum them. An `out` of another size is replaced as with Replace.
+    Add,
+  };
+  /// Fills `out` for the scene's camera using `surface.distance` (+inf = sky). Its figures
+  /// (evaluated, seconds, spokes, …) describe this call alone, also with Write::Add.
+  void evaluate(const Scene& scene, const SurfaceBuffers& surface, const SubsamplingOptions& opt, AirlightImage& out,
+                Write write = Write::Replace);
 
   /// Takes the lamps' poses from `scene` (same lamps, same order as at build): vehicles move
   /// between frames. Tables are kept; view tables stay valid while a lamp's pose relative to

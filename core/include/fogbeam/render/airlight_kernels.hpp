@@ -247,6 +247,8 @@ void fillBlocks(const FillBlock* blocks, std::size_t n, float* r, float* g, floa
 /// out[3i + c] = plane c [i] for i < n: three planes to interleaved RGB, with non-temporal
 /// stores. Call flushStreams() before another thread reads `out`.
 void interleaveRgb(const float* r, const float* g, const float* b, std::size_t n, float* out);
+/// out[3i + c] += plane c [i] for i < n (plain stores: `out` is read anyway).
+void interleaveAddRgb(const float* r, const float* g, const float* b, std::size_t n, float* out);
 /// Orders the non-temporal stores of this thread before its later stores (x86 sfence).
 void flushStreams();
 

@@ -48,4 +48,16 @@ class ThreadPool {
   bool stop_ = false;
 };
 
+/// fn(i) for every i in [0, n): on `pool` when it has workers, else in place on the calling
+/// thread, where the lambda is called directly (no std::function, so nothing is allocated).
+/// `pool` may be null. Thread-safety as ThreadPool::parallelFor.
+template <class Fn>
+void parallelFor(ThreadPool* pool, std::size_t n, Fn&& fn) {
+  if (pool != nullptr && pool->size() > 1) {
+    pool->parallelFor(n, fn);
+    return;
+  }
+  for (std::size_t i = 0; i < n; ++i) fn(i);
+}
+
 }  // namespace fogbeam
