@@ -52,6 +52,9 @@ struct ValidateOptions {
   int pt_samples = 20000;
   /// --pt-road-only: of the path-tracer comparisons only the road's (the fog light, issue 18).
   bool pt_road_only = false;
+  /// --pt-cases: of the ring comparisons only the cases whose name contains this text (e.g.
+  /// "high beam"), and not the road's; empty (default): every case.
+  std::string pt_cases;
   /// --pt-out: CSV of the ring figures (one row per case and ring); empty (default): none.
   std::string pt_out;
   /// --pt-pictures: a folder to write pictures of fogbeam (single, single + glow) beside the

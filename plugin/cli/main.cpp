@@ -82,13 +82,16 @@ void addValidateCommand(CLI::App& app, int& exitCode) {
       ->check(CLI::Range(1, 4096));
   sub->add_flag("--path-tracer", opts->path_tracer,
                 "also compare fogbeam's single scattering and glow with the all-orders path tracer in rings 0.5-16 deg "
-                "about a lamp in view (isotropic lamps in 6 fogs, a road, the low beam from 3 sides; a few minutes; exits 1 "
+                "about a lamp in view (isotropic lamps in 6 fogs, a road, the low and high beams from 3 sides; a few minutes; exits 1 "
                 "when the path tracer's single scattering misses fogbeam's by more than 3 sigma + 1 %)");
   sub->add_option("--pt-samples", opts->pt_samples,
                   "--path-tracer: paths per ring and case (default 20000; the error falls as 1/sqrt)")
       ->check(CLI::Range(100, 100000000));
   sub->add_flag("--pt-road-only", opts->pt_road_only,
                 "--path-tracer: only the scattered light on the road (the fog light), not the rings");
+  sub->add_option("--pt-cases", opts->pt_cases,
+                  "--path-tracer: only the ring cases whose name contains this text (e.g. \"high beam\"), without the "
+                  "road's scattered light");
   sub->add_option("--pt-out", opts->pt_out,
                   "--path-tracer: write the ring figures as CSV (one row per case and ring; luminances in cd/m2)");
   sub->add_option("--pt-pictures", opts->pt_pictures,

@@ -151,15 +151,44 @@ struct ScatteredIrradiance {
 /// direction from the lamp to `eye`, k < bins (the multiple-scattering tables' emission bins).
 /// `frontOnly`: directions behind the lamp's photometric axis (lamp-frame x < 0) count as dark
 /// (the driver's own lamps: housing and car body take what a file gives backwards).
+/// `bandMeans` (null: not wanted): per annulus k the mean of each of its kGlowBands bands
+/// uniform in cos η, at bandMeans[k · kGlowBands + b] (b = 0 nearest η = edges[k]). Annuli at
+/// least 10° wide are summed over cells of ~1.5° of the profile's direction sphere (its mean
+/// intensity per cell, computed once per profile and kept while a lamp holds it: ~16 000
+/// look-ups, tens of milliseconds), each cell in the annulus and band of its centre, so that a
+/// beam of a few degrees counts with its solid angle wherever it lies; narrower ones (about the
+/// direction to the eye or its opposite) are sampled as annulusMeans does, with azimuths at most
+/// 1.5° apart. Thread-safe.
 void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, std::size_t bins, double* out,
-                      bool frontOnly = false);
+                      bool frontOnly = false, double* bandMeans = nullptr);
+/// Bands per emission bin in glowAnnulusMeans (equal solid angles).
+inline constexpr int kGlowBands = 4;
 /// The same about the lamp-frame unit direction `axis` of `profile`: 4 bands uniform in cos η ×
 /// 24 azimuths per annulus, `narrowBands` bands for annuli narrower than 10°. `harmonic` (null:
 /// not wanted): per annulus the first azimuthal harmonic Ī₁ (cd, a lamp-frame vector
 /// perpendicular to `axis`) of I ≈ Ī + Ī₁ · ê, ê the unit vector of the azimuth about the axis:
-/// which side of the axis the light leaves on (fogbeam/render/fog_light.hpp).
+/// which side of the axis the light leaves on (fogbeam/render/fog_light.hpp). `bandMeans`
+/// (null: not wanted; only with narrowBands = 4): per annulus its 4 bands' means, as
+/// glowAnnulusMeans. `azimuths`: samples per band (24 are 15° apart on an annulus at 90°: a beam
+/// a few degrees wide there is over- or under-counted; glowAnnulusMeans sums cells instead).
 void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges, std::size_t bins, double* out,
-                  bool frontOnly = false, int narrowBands = 4, Vec3* harmonic = nullptr);
+                  bool frontOnly = false, int narrowBands = 4, Vec3* harmonic = nullptr, double* bandMeans = nullptr,
+                  int azimuths = 24);
+/// How the light that reaches one point from one emission bin is spread within the bin: the
+/// multiple-scattering table gives each bin's share s_k of the light at a node (T, θ), not where
+/// in the bin it left the lamp, and a bin 40° wide (60–100°) holds light that left at 60°, which
+/// reaches the eye through smaller deflections, and at 100°, which needs larger ones. The share
+/// per unit solid angle, s_k / (cos η_k − cos η_{k+1}), is taken as a sample at the bin's middle
+/// (in cos η) of a function of η whose logarithm is linear between neighbouring bins' middles
+/// (extrapolated from the nearest two in the first and last bins); each bin's kGlowBands bands
+/// (uniform in cos η) get that function's value at their middle, scaled so that the bands' mean
+/// is 1. A lamp uniform over a bin (an isotropic lamp: every bin) is weighted exactly as by the
+/// bin's share alone; a narrow beam at one side of a bin (a high beam seen from the side, at
+/// η ≈ 90° in the 60–100° bin) by the part of the bin it lights. Bins whose share or a
+/// neighbour's is 0 keep weight 1 in every band. `shares`: the bins' shares at one node
+/// (MultipleScatteringTable::emissionShares), `edges` the bins' bins + 1 edges (radians);
+/// writes bins × kGlowBands weights. Reentrant.
+void emissionBandWeights(const double* shares, const double* edges, std::size_t bins, double* weights);
 /// The glow's source intensity of `lamp` seen from `eye` (header comment): the mean of I over
 /// the cone of half-angle ψ about the direction from the lamp to the eye, cos ψ = max(q^T, ½).
 [[nodiscard]] double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDistance, double q);
