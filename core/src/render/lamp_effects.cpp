@@ -340,8 +340,8 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
   // Each of kSlices slices of cos η ∈ [−1, 1] goes to the (bin, band) of its middle, wide bins
   // only (kDrop: a narrow bin's, sampled above): a cell's cos η then picks its sums with one
   // look-up, no branch (the cells' order about the lamp's axis is not the annuli's; branches
-  // mispredicted ~2 a cell, 10 ns). A slice is 1/2048 of cos η wide, 0.03° at η = 90° and 1.8°
-  // within 0.05° of the axis (where every bin is narrow): far below the cells' own 1.5°.
+  // mispredicted ~2 a cell, 10 ns). A slice is 1/2048 of cos η wide: 0.03° at η = 90°, 0.11° at
+  // 15° and 165° (the wide bins' extremes), far below the cells' own 1.5°.
   constexpr int kSlices = 4096;
   constexpr std::size_t kDrop = kMaxBins * kGlowBands;
   // Per thread, for the last edges it was made for (the frame's table's: made once).
