@@ -154,8 +154,8 @@ struct ScatteredIrradiance {
 /// `bandMeans` (null: not wanted): per annulus k the mean of each of its kGlowBands bands
 /// uniform in cos η, at bandMeans[k · kGlowBands + b] (b = 0 nearest η = edges[k]). Annuli at
 /// least 10° wide are summed over cells of ~1.5° of the profile's direction sphere (its mean
-/// intensity per cell, computed once per profile and kept while a lamp holds it: ~16 000
-/// look-ups, tens of milliseconds), each cell in the annulus and band of its centre, so that a
+/// intensity per cell, computed once per profile and kept while a lamp holds it: ~18 000 cells
+/// of 16 look-ups, ~25 ms), each cell in the annulus and band of its centre, so that a
 /// beam of a few degrees counts with its solid angle wherever it lies; narrower ones (about the
 /// direction to the eye or its opposite) are sampled as annulusMeans does, with azimuths at most
 /// 1.5° apart. Thread-safe.
