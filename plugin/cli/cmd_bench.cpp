@@ -1306,10 +1306,11 @@ json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
   }
   out["static"] = base->airlight.toJson();
   out["static"]["evaluated_pixels"] = base->evaluated;
-  out["changes"] = changesStage(still, surface, threads, o, *base);
+  if (!o.onlyPencil) out["changes"] = changesStage(still, surface, threads, o, *base);
   ThreadPool pool(threads);
   auto reference = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, FastPathOptions{});
   for (MovingLampPath path : {MovingLampPath::Map, MovingLampPath::Pencil}) {
+    if (o.onlyPencil && path == MovingLampPath::Map) continue;
     auto run = trafficFrames(scene, surface, cars, path, threads, o);
     if (!run || !reference) {
       out["note"] = !run ? run.error().message : reference.error().message;
@@ -1354,6 +1355,7 @@ void printTraffic(const json& t) {
     printStage("static frame (no cars)", t["static"], note);
   }
   for (const char* k : {"map", "pencil"}) {
+    if (!t.contains(k)) continue;  // --only-pencil
     const json& r = t[k];
     char note[200];
     std::snprintf(note, sizeof note, "  %zu px evaluated; %.1f x the static frame", r["evaluated_pixels"].get<std::size_t>(),
@@ -1374,6 +1376,7 @@ void printTraffic(const json& t) {
                 r["eval_ms"].get<double>(), r["judge_ms"].get<double>(), r["fill_ms"].get<double>());
     printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
   }
+  if (!t.contains("changes")) return;  // --only-pencil
   const json& c = t["changes"];
   if (c.contains("note")) {
     std::printf("  changing fog and bending: %s\n", c["note"].get<std::string>().c_str());

@@ -49,6 +49,7 @@ struct BenchOptions {
   std::string trafficScene = kBenchTrafficScene;  ///< --traffic-scene: scene with moving measured lamps
   std::string trafficSize = "1280x720";          ///< --traffic-size: WIDTHxHEIGHT of the traffic drive
   bool onlyTraffic = false;                      ///< --only-traffic: the moving-lamp section alone
+  bool onlyPencil = false;                       ///< --only-pencil: of that section, the pencil frames alone
 };
 
 /// Runs the benchmark; returns the exit status: 0, 1 when the JSON file cannot be written, 2 on

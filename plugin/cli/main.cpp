@@ -207,6 +207,9 @@ void addBenchCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--traffic-size", o->trafficSize,
                   "size WIDTHxHEIGHT of the moving-lamp section (default 1280x720)");
   sub->add_flag("--only-traffic", o->onlyTraffic, "run the moving-lamp section alone (its own scene; no other stage)");
+  sub->add_flag("--only-pencil", o->onlyPencil,
+                "with --only-traffic: its static and pencil frames alone (no maps, no changing-fog section): "
+                "a quick measure of the moving-lamp path");
   sub->add_option("--threads", o->threads, "worker threads (default: all cores)");
   sub->add_option("--sample-pixels", o->samplePixels, "random pixels for the error figures (default 500)")
       ->check(CLI::Range(10, 1000000));

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "airlight_kernel.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -250,6 +252,33 @@ TEST(PencilAirlight, RefusesOtherMethodsAndBadOptions) {
   ASSERT_TRUE(acc.has_value());
   EXPECT_FALSE(PencilAirlight::build(*acc, Vec3(0.0), PencilOptions{4, 1.5}).has_value());
   EXPECT_FALSE(PencilAirlight::build(*acc, Vec3(0.0), PencilOptions{720, 0.0}).has_value());
+}
+
+// PsiBasis::interval reads a table of cells (the interval at each cell's start, one step either
+// way) instead of searching the knots: the same answer everywhere, at the knots, a rounding step
+// either side of each, and anywhere in and around [0, π].
+TEST(PsiBasis, IntervalIsTheOneHoldingPsi) {
+  const detail::PsiBasis& basis = detail::psiBasis();
+  const int m = basis.intervals();
+  auto expected = [&](double psi) {
+    int j = 0;
+    while (j + 1 <= m && basis.knot(j + 1) <= psi) ++j;
+    return std::clamp(j, 0, m - 1);
+  };
+  std::vector<double> probes;
+  for (int j = 0; j <= m; ++j) {
+    const double t = basis.knot(j);
+    for (double x : {t, std::nextafter(t, -1.0), std::nextafter(t, 10.0), t - 1e-12, t + 1e-12})
+      probes.push_back(x);
+    if (j < m) probes.push_back(0.5 * (t + basis.knot(j + 1)));
+  }
+  std::mt19937_64 rng(15);
+  std::uniform_real_distribution<double> any(-0.1, 3.3);
+  for (int k = 0; k < 200000; ++k) probes.push_back(any(rng));
+  int wrong = 0;
+  for (double x : probes)
+    if (basis.interval(x) != expected(x) && ++wrong <= 5) ADD_FAILURE() << "psi " << x << ": " << basis.interval(x) << " against " << expected(x);
+  EXPECT_EQ(wrong, 0) << "of " << probes.size() << " probes";
 }
 
 }  // namespace

@@ -66,6 +66,13 @@ PsiBasis::PsiBasis() {
   }
   knots_.push_back(kPi);
   widest_ = std::max(widest_, kPi - x);
+  // interval()'s cells: half the smallest knot step wide, so a cell and its rounding margin
+  // hold at most one knot.
+  double narrowest = kPi;
+  for (std::size_t k = 0; k + 1 < knots_.size(); ++k) narrowest = std::min(narrowest, knots_[k + 1] - knots_[k]);
+  cellsPerRad_ = 2.0 / narrowest;
+  cellStart_.resize(static_cast<std::size_t>(std::ceil(kPi * cellsPerRad_)) + 1);
+  for (std::size_t c = 0; c < cellStart_.size(); ++c) cellStart_[c] = intervalSearch(static_cast<double>(c) / cellsPerRad_);
   padded_ = {0.0, 0.0, 0.0};
   padded_.insert(padded_.end(), knots_.begin(), knots_.end());
   padded_.insert(padded_.end(), {kPi, kPi, kPi});
@@ -107,7 +114,7 @@ void PsiBasis::combine(int j, const float w[4], double g[4]) const noexcept {
     for (int p = 0; p < 4; ++p) g[p] += static_cast<double>(w[i]) * c[p];
 }
 
-int PsiBasis::interval(double psi) const noexcept {
+int PsiBasis::intervalSearch(double psi) const noexcept {
   const auto it = std::upper_bound(knots_.begin(), knots_.end(), psi);
   const int j = static_cast<int>(it - knots_.begin()) - 1;
   return std::clamp(j, 0, intervals() - 1);

@@ -40,6 +40,7 @@
 
 #include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -165,6 +166,10 @@ class PencilAirlight {
   /// Per spoke, with kernel_expansion: ∫_0^π β_r I_s dψ for every basis function r, then for
   /// every knot t_j the three ∫_0^{t_j} β_{j+i} I_s dψ, i = 0, 1, 2 (the functions that straddle it).
   mutable std::vector<std::vector<float>> projections_;
+  /// Per spoke, with kernel_expansion: for every knot t_j (j = 0 … intervals()) the index of the
+  /// first piece that ends after it (pieces().size() when none): where a ray's partial last
+  /// interval and its tail start reading pieces, without a binary search per ray.
+  mutable std::vector<std::vector<std::uint32_t>> pieceAtKnot_;
   std::shared_ptr<const detail::KernelTable> kernel_;
   /// The kernel table at this pencil's τ (KernelTable::sliceAt), refreshed by reset(): rays
   /// read two rows of it per ray instead of four of the whole table. Empty beyond kTauMax.
