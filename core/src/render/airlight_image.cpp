@@ -1813,11 +1813,12 @@ void locateLampImages(State& st, const Lamps& lamps, const CameraFrame& cf) {
 }
 
 // Stage "plan the image": the frame's context for the image stages: coarse step, the distance
-// beyond which edges are ignored, the tiles and the coarse grid.
+// beyond which edges are ignored, the tiles and the coarse grid; `add`: Write::Add (the pixels go
+// onto out's values).
 FrameCtx planImage(const State& st, const Lamps& lamps, const Scene& scene, const SurfaceBuffers& surface,
-                   const SubsamplingOptions& opt, AirlightImage& out, const CameraFrame& cf) {
+                   const SubsamplingOptions& opt, AirlightImage& out, bool add, const CameraFrame& cf) {
   const Camera& cam = cf.cam;
-  FrameCtx f{&st, &lamps, &cam, &surface, &out, false,
+  FrameCtx f{&st, &lamps, &cam, &surface, &out, add,
              kernels::PixelGeometry{static_cast<float>(cf.principal.x), static_cast<float>(cf.principal.y),
                                     static_cast<float>(1.0 / cf.focal)},
              &opt, PixelRays(cam)};
@@ -2287,8 +2288,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
 
   // The image: tiling and per-thread memory, then the pixels (every one, or the coarse grid and
   // the tiles' refinement).
-  FrameCtx f = planImage(st, lamps_, scene, surface, opt, out, cf);
-  f.add = add;
+  FrameCtx f = planImage(st, lamps_, scene, surface, opt, out, add, cf);
   f.chunk = coarseChunk(f, pool_->size());
   ensureScratch(st, f, pool_->size(), lamps_.size());
   if (opt.full) {

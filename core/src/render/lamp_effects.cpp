@@ -317,9 +317,10 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
   if (!(len > 0.0)) return;
   const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);
   const Vec3 axis = lampFromWorld * (d / len);  // towards the eye
+  auto wide = [&](std::size_t k) { return edges[k + 1] - edges[k] >= kWideBin; };
   bool anyWide = false;
   for (std::size_t k = 0; k < bins; ++k) {
-    if (edges[k + 1] - edges[k] >= kWideBin) {
+    if (wide(k)) {
       anyWide = true;
       continue;
     }
@@ -355,45 +356,30 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
       std::size_t k = 0;
       while (k + 1 < bins && c < ce[k + 1]) ++k;
       std::size_t code = kDrop;
-      if (edges[k + 1] - edges[k] >= kWideBin && ce[k] > ce[k + 1]) {
+      if (wide(k) && ce[k] > ce[k + 1]) {
         const double t = (ce[k] - c) / (ce[k] - ce[k + 1]) * kGlowBands;
         code = k * kGlowBands + std::min<std::size_t>(kGlowBands - 1, static_cast<std::size_t>(std::max(0.0, t)));
       }
       sliceCode[static_cast<std::size_t>(q)] = static_cast<std::uint16_t>(code);
     }
   }
-  // Two sets of sums, even and odd cells: neighbouring cells mostly share a band, and one set
-  // would chain every addition on the one before.
-  double iw[kDrop + 1] = {}, w[kDrop + 1] = {}, iw2[kDrop + 1] = {}, w2[kDrop + 1] = {};
+  // Per (bin, band) slot Σ I Ω and Σ Ω. (Two sets of sums, even and odd cells, to break the
+  // chain of additions where neighbouring cells share a slot, measured the same 70–85 µs a call.)
+  double iw[kDrop + 1] = {}, w[kDrop + 1] = {};
   const auto ax = static_cast<float>(axis.x), ay = static_cast<float>(axis.y), az = static_cast<float>(axis.z);
   const std::size_t n = cells->x.size();
   const float *cx = cells->x.data(), *cy = cells->y.data(), *cz = cells->z.data();
   const double *ci = cells->iOmega.data(), *co = cells->omega.data();
   const std::uint16_t* code = sliceCode.data();
-  auto slotOf = [&](std::size_t i) {
+  for (std::size_t i = 0; i < n; ++i) {
     const float c = ax * cx[i] + ay * cy[i] + az * cz[i];
-    return static_cast<std::size_t>(code[std::clamp(static_cast<int>((c + 1.0f) * (0.5f * kSlices)), 0, kSlices - 1)]);
-  };
-  // frontOnly: the cells behind the lamp count as dark (their area stays in the annulus).
-  auto lit = [&](std::size_t i) { return frontOnly && cx[i] < 0.0f ? 0.0 : ci[i]; };
-  std::size_t i = 0;
-  for (; i + 1 < n; i += 2) {
-    const std::size_t s0 = slotOf(i), s1 = slotOf(i + 1);
-    iw[s0] += lit(i);
-    w[s0] += co[i];
-    iw2[s1] += lit(i + 1);
-    w2[s1] += co[i + 1];
-  }
-  if (i < n) {
-    iw[slotOf(i)] += lit(i);
-    w[slotOf(i)] += co[i];
-  }
-  for (std::size_t k = 0; k < kDrop; ++k) {
-    iw[k] += iw2[k];
-    w[k] += w2[k];
+    const auto slot = static_cast<std::size_t>(code[std::clamp(static_cast<int>((c + 1.0f) * (0.5f * kSlices)), 0, kSlices - 1)]);
+    // frontOnly: the cells behind the lamp count as dark (their area stays in the annulus).
+    iw[slot] += frontOnly && cx[i] < 0.0f ? 0.0 : ci[i];
+    w[slot] += co[i];
   }
   for (std::size_t k = 0; k < bins; ++k) {
-    if (edges[k + 1] - edges[k] < kWideBin) continue;
+    if (!wide(k)) continue;
     double si = 0.0, sw = 0.0;
     for (std::size_t b = 0; b < kGlowBands; ++b) {
       si += iw[k * kGlowBands + b];
