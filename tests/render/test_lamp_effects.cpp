@@ -483,6 +483,53 @@ TEST(ScatteredLightOnSurfaces, TheTablesModelMatchesThePathTracerInInfiniteFog) 
   EXPECT_FALSE(scatteredIrradiance(*ms, *iso, fog, 0.0, 1.0).has_value());
 }
 
+// A measured lamp's effective intensity (its annulus sums about the direction to the eye) is
+// kept while that direction holds: the kept value must be what a fresh evaluator computes, and
+// a lamp that turns (bending) or an eye that moves must not read the old one.
+TEST(LampEffectsLayers, AMeasuredLampsKeptGlowSourceIsTheFreshOne) {
+  FxScene s = setup();
+  s.scene.lamps.clear();
+  SceneLamp car;
+  car.name = "oncoming high beam";
+  car.lamp.position_m = Vec3(60.0, 3.5, 0.65);
+  car.lamp.worldFromLamp = worldFromAxis(Vec3(-1.0, 0.0, 0.0));
+  car.lamp.profile = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/high_beam.ies").value();
+  s.scene.lamps.push_back(car);
+  auto pool = std::make_shared<ThreadPool>(2);
+  LampEffects kept = LampEffects::build(s.scene, glowOn(), GlareOptions{}, pool).value();
+  std::vector<float> glow, glare, fresh;
+  LampEffectsReport rep, freshRep;
+  auto freshGlow = [&](const Scene& sc) {
+    LampEffects fx = LampEffects::build(sc, glowOn(), GlareOptions{}, pool).value();
+    fx.evaluate(sc, s.surface, fresh, glare, freshRep);
+    return freshRep.lamps.at(0).glow_source_cd;
+  };
+  kept.evaluate(s.scene, s.surface, glow, glare, rep);
+  const double first = rep.lamps.at(0).glow_source_cd;
+  EXPECT_GT(first, 0.0);
+  EXPECT_EQ(first, freshGlow(s.scene));
+  kept.evaluate(s.scene, s.surface, glow, glare, rep);  // the kept source
+  EXPECT_EQ(rep.lamps.at(0).glow_source_cd, first);
+  EXPECT_EQ(glow, fresh);
+  // The lamp bends 8° towards the eye: more light towards it, and the fresh value.
+  Scene bent = s.scene;
+  bent.lamps[0].lamp.worldFromLamp = worldFromAxis(Vec3(-std::cos(radians(8.0)), std::sin(radians(8.0)), 0.0));
+  kept.evaluate(bent, s.surface, glow, glare, rep);
+  const double turned = rep.lamps.at(0).glow_source_cd;
+  EXPECT_EQ(turned, freshGlow(bent));
+  EXPECT_NE(turned, first);
+  EXPECT_EQ(glow, fresh);
+  // The eye moves 2 m sideways (the lamp's distance changes too: a new curve and a new source).
+  Scene moved = s.scene;
+  moved.camera.position_m += Vec3(0.0, 2.0, 0.0);
+  kept.evaluate(moved, s.surface, glow, glare, rep);
+  EXPECT_EQ(rep.lamps.at(0).glow_source_cd, freshGlow(moved));
+  EXPECT_NE(rep.lamps.at(0).glow_source_cd, first);
+  // Back where it was: the first value again.
+  kept.evaluate(s.scene, s.surface, glow, glare, rep);
+  EXPECT_EQ(rep.lamps.at(0).glow_source_cd, first);
+}
+
 TEST(LampEffectsLayers, NearerSurfacesDimTheGlowAndAHiddenLampHasNone) {
   FxScene s = setup();
   auto pool = std::make_shared<ThreadPool>(2);

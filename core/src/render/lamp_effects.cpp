@@ -470,6 +470,14 @@ struct LampEffects::Tables {
     std::vector<int> node;
     std::vector<double> nodeWeight;
     bool measured = false;
+    // The measured lamp's effective intensity per table angle (I_eff, below) and what it was
+    // made for: the lamp-frame direction to the eye, the profile, frontOnly. A lamp fixed to the
+    // eye (the driver's own) keeps that direction, so its ~0.13 ms a frame of annulus sums is
+    // spent once; so is a parked car's. Cleared with the curve (its shares change).
+    std::vector<double> effective;
+    Vec3 effectiveAxis{0.0};
+    std::shared_ptr<const Profile> effectiveProfile;  // held: no other profile takes its address
+    bool effectiveOwn = false, effectiveValid = false;
   };
   // The report's single-scattered flux (singleScatteredFlux) of the tables' glow, tabulated in
   // log T for the IsoTable it was computed with: a moving lamp's curve would otherwise spend
@@ -496,7 +504,7 @@ struct LampEffects::Tables {
           singleScatteredFlux(*iso, std::exp2(kFluxLog2Min + static_cast<double>(i) / kFluxPerOctave), kNodes), 1e-300));
   }
   // Scratch of the per-frame emission-bin means (steady frames allocate nothing).
-  std::vector<double> annulus, effective, bands;
+  std::vector<double> annulus, bands;
   std::vector<CurveCache> curves;
   // The fast path's buffers of one layer (grown only: steady frames allocate nothing).
   struct Layer {
@@ -850,6 +858,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         cc.fromTable = fromTable;
         cc.ok = static_cast<bool>(curve);
         cc.measured = false;
+        cc.effectiveValid = false;
         if (curve && fromTable && t.ms->hasEmissionBins() &&
             !std::holds_alternative<IsotropicProfile>(lamp.profile->model())) {
           // The emission shares at the table's angle nodes for this T, and where each glow node
@@ -895,22 +904,36 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
         if (measured) {
           const auto& edges = t.ms->emissionEdges();
           const std::size_t nK = edges.size() - 1, nA = t.ms->angles().size();
-          t.annulus.resize(nK);
-          t.bands.resize(nK * kGlowBands);
-          t.effective.resize(nA);
-          glowAnnulusMeans(lamp, cam.position_m, edges.data(), nK, t.annulus.data(), own, t.bands.data());
-          // Each bin's share spread over its bands (emissionBandWeights): Σ_k s_k · mean_b(w_kb Ī_kb).
-          for (std::size_t j = 0; j < nA; ++j) {
-            double e = 0.0;
-            const double* wj = cc.bandWeights.data() + j * nK * kGlowBands;
-            for (std::size_t k = 0; k < nK; ++k) {
-              double in = 0.0;
-              for (std::size_t b = 0; b < kGlowBands; ++b) in += wj[k * kGlowBands + b] * t.bands[k * kGlowBands + b];
-              e += cc.shares[j * nK + k] * in / kGlowBands;
+          // The direction to the eye in the lamp's frame, as glowAnnulusMeans takes it; within
+          // 1e-6 rad (2e-4°, rounding of a rig that moves with the eye) of the last one's, the
+          // last I_eff serves.
+          const Vec3 toEye = cam.position_m - lamp.position_m;
+          const double toEyeLen = glm::length(toEye);
+          const Vec3 axis = toEyeLen > 0.0 ? glm::transpose(lamp.worldFromLamp) * (toEye / toEyeLen) : Vec3(0.0);
+          const bool same = cc.effectiveValid && cc.effectiveProfile == lamp.profile && cc.effectiveOwn == own &&
+                            cc.effective.size() == nA && glm::length(axis - cc.effectiveAxis) < 1e-6;
+          if (!same) {
+            t.annulus.resize(nK);
+            t.bands.resize(nK * kGlowBands);
+            cc.effective.resize(nA);
+            glowAnnulusMeans(lamp, cam.position_m, edges.data(), nK, t.annulus.data(), own, t.bands.data());
+            // Each bin's share spread over its bands (emissionBandWeights): Σ_k s_k · mean_b(w_kb Ī_kb).
+            for (std::size_t j = 0; j < nA; ++j) {
+              double e = 0.0;
+              const double* wj = cc.bandWeights.data() + j * nK * kGlowBands;
+              for (std::size_t k = 0; k < nK; ++k) {
+                double in = 0.0;
+                for (std::size_t b = 0; b < kGlowBands; ++b) in += wj[k * kGlowBands + b] * t.bands[k * kGlowBands + b];
+                e += cc.shares[j * nK + k] * in / kGlowBands;
+              }
+              cc.effective[j] = e;
             }
-            t.effective[j] = e;
+            cc.effectiveAxis = axis;
+            cc.effectiveProfile = lamp.profile;
+            cc.effectiveOwn = own;
+            cc.effectiveValid = true;
           }
-          source = t.effective.front();
+          source = cc.effective.front();
         } else {
           source = glowSourceIntensity(lamp, cam.position_m, rep.optical_distance, q);
         }
@@ -926,7 +949,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
           double src = source;
           if (measured) {
             const auto j = static_cast<std::size_t>(cc.node[ui]);
-            src = (1.0 - cc.nodeWeight[ui]) * t.effective[j] + cc.nodeWeight[ui] * t.effective[j + 1];
+            src = (1.0 - cc.nodeWeight[ui]) * cc.effective[j] + cc.nodeWeight[ui] * cc.effective[j + 1];
           }
           const double g = fade * src * cc.glow[ui];
           table[i] = static_cast<float>(g);
