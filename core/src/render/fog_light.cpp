@@ -412,6 +412,12 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
   m->nB_ = static_cast<int>(std::lround(2.0 * kPi / kMapStep)) + 1;  // 0 … 360°, the last = the first
   const std::size_t bins = m->bins_, nB = static_cast<std::size_t>(m->nB_);
   m->v_.assign(static_cast<std::size_t>(m->nA_) * nB * bins * kFloats, 0.0f);
+  // The nodes' annuli as the glow's (cellAnnulusMeans): annuli ≥ 10° wide summed over the
+  // profile's ~1.5° sphere cells, narrower ones sampled with azimuths ≤ 1.5° apart. Sampled at
+  // 24 azimuths, as until 2026-11-28, a bin's mean was off by up to 38 % (high beam), 61 % (front
+  // fog lamp) and 89 % (low beam) of itself plus 1 % of the largest bin, against 16 sub-annuli ×
+  // 1 440 azimuths, at directions to road points 3–80 m ahead and behind a lamp; the cells, 4–5 %.
+  const std::shared_ptr<const ProfileSphereCells> cells = profileSphereCells(profile);
   auto row = [&](std::size_t ia) {
     std::vector<double> out(bins);
     std::vector<Vec3> first(bins);
@@ -419,7 +425,7 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
     for (std::size_t ib = 0; ib + 1 < nB; ++ib) {
       const double b = static_cast<double>(ib) * kMapStep;
       const Vec3 w{std::cos(a), std::sin(a) * std::cos(b), std::sin(a) * std::sin(b)};
-      annulusMeans(profile, w, edges.data(), bins, out.data(), frontOnly, 2, first.data());
+      cellAnnulusMeans(profile, cells.get(), w, edges.data(), bins, out.data(), frontOnly, nullptr, first.data(), kGlowBands);
       float* v = &m->v_[(ia * nB + ib) * bins * kFloats];
       for (std::size_t k = 0; k < bins; ++k) {
         v[kFloats * k] = static_cast<float>(out[k]);

@@ -176,8 +176,9 @@ struct FogLightAzimuthal {
 
 /// Ī_k(w) and the harmonics Ī₁_k(w) of one profile over the lamp-frame directions: a grid of 0.5° / 3°
 /// in the angle from the lamp's +x axis (0 … 180°) and 3° in the azimuth about it (atan2(z, y)),
-/// bilinear between nodes.
-/// Built once per (profile, bins, frontOnly): ~0.3–0.6 s for a tabulated file on 2 cores.
+/// bilinear between nodes. Each node's annuli as the glow's (cellAnnulusMeans, lamp_effects.hpp:
+/// sphere cells for annuli ≥ 10° wide, fine azimuths for the others).
+/// Built once per (profile, bins, frontOnly): ~0.9–1.0 s for a tabulated file on 2 cores.
 class AnnulusMeanMap {
  public:
   /// `frontOnly`: directions behind the lamp's axis are dark (the driver's own lamps, as the glow).

@@ -163,6 +163,19 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
                       bool frontOnly = false, double* bandMeans = nullptr);
 /// Bands per emission bin in glowAnnulusMeans (equal solid angles).
 inline constexpr int kGlowBands = 4;
+/// A profile's mean intensity on ~18 000 cells of ~1.5° of its direction sphere (lamp frame),
+/// which glowAnnulusMeans sums for annuli at least 10° wide (~25 ms to make: 16 look-ups a cell).
+struct ProfileSphereCells;
+[[nodiscard]] std::shared_ptr<const ProfileSphereCells> profileSphereCells(const Profile& profile);
+/// glowAnnulusMeans about the lamp-frame unit direction `axis` of `profile`, from its `cells`
+/// (null: the wide annuli stay 0), with (harmonic not null) each annulus' first azimuthal
+/// harmonic as annulusMeans gives it (from the cells for the wide annuli: Σ I Ω ê / Σ Ω, ê from
+/// each cell's centre), `narrowBands` bands for the sampled narrow annuli when bandMeans is null
+/// (with bandMeans: kGlowBands). ~70–100 µs with cells of a headlamp (`fogbeam/render/fog_light.hpp`'s
+/// AnnulusMeanMap calls it per node). Thread-safe.
+void cellAnnulusMeans(const Profile& profile, const ProfileSphereCells* cells, const Vec3& axis, const double* edges,
+                      std::size_t bins, double* out, bool frontOnly = false, double* bandMeans = nullptr,
+                      Vec3* harmonic = nullptr, int narrowBands = kGlowBands);
 /// The same about the lamp-frame unit direction `axis` of `profile`: 4 bands uniform in cos η ×
 /// 24 azimuths per annulus, `narrowBands` bands for annuli narrower than 10°. `harmonic` (null:
 /// not wanted): per annulus the first azimuthal harmonic Ī₁ (cd, a lamp-frame vector
