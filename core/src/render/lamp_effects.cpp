@@ -247,7 +247,6 @@ void annulusMeans(const Profile& profile, const Vec3& axis, const double* edges,
   }
 }
 
-
 // A profile's light on cells of ~1.5° of the direction sphere (lamp frame), for the glow's wide
 // emission bins. Sampling such an annulus (4 bands × 24 azimuths: 15° apart at η = 90°) aliases a
 // narrow beam: a high beam seen from the side (σ 1.8° across the annulus) fell between the
@@ -384,8 +383,9 @@ void cellAnnulusMeans(const Profile& profile, const ProfileSphereCells* cells, c
       sliceInvSin[static_cast<std::size_t>(q)] = static_cast<float>(1.0 / std::sqrt(std::max(1e-12, 1.0 - c * c)));
     }
   }
-  // Per (bin, band) slot Σ I Ω and Σ Ω. With the harmonic, Σ I Ω ê = Σ (I Ω / sin η) c − axis · Σ (I Ω / sin η) cos η, ê the unit
-  // direction of the cell's centre c about the axis (annulusMeans' Ī₁ = 2 ⟨I ê⟩).
+  // Per (bin, band) slot Σ I Ω and Σ Ω. With the harmonic also Σ I Ω ê, ê the unit direction of
+  // the cell's centre c about the axis: Σ (I Ω / sin η) c − axis · Σ (I Ω / sin η) cos η
+  // (annulusMeans' Ī₁ = 2 ⟨I ê⟩).
   double iw[kDrop + 1] = {}, w[kDrop + 1] = {};
   const auto ax = static_cast<float>(axis.x), ay = static_cast<float>(axis.y), az = static_cast<float>(axis.z);
   const std::size_t n = cells->x.size();
