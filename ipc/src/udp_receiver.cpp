@@ -78,6 +78,7 @@ struct UdpReceiver::Impl {
     const auto i = static_cast<std::size_t>(r);
     {
       std::lock_guard<std::mutex> lock(statsMutex);
+      ++stats.datagrams;  // with its outcome, so every snapshot holds datagrams = applied + drops
       ++stats.dropped[i];
     }
     ++sinceLog[i];
@@ -173,6 +174,7 @@ struct UdpReceiver::Impl {
       return;
     }
     std::lock_guard<std::mutex> lock(statsMutex);
+    ++stats.datagrams;  // with its outcome (see drop())
     ++stats.applied;
     ++stats.applied_by_type[static_cast<std::size_t>(m.header.type)];
   }
@@ -218,10 +220,8 @@ struct UdpReceiver::Impl {
           break;
         }
         const auto now = Clock::now();
-        {
-          std::lock_guard<std::mutex> lock(statsMutex);
-          ++stats.datagrams;
-        }
+        // A datagram is counted when its outcome is (drop() or apply()), under one lock, so that a
+        // stats() snapshot never shows one received but neither applied nor dropped.
         if (!allow.empty() && std::find(allow.begin(), allow.end(), from.sin_addr.s_addr) == allow.end()) {
           drop(DropReason::SenderNotAllowed, "source", from);
           continue;

@@ -39,9 +39,10 @@ struct UdpReceiverOptions {
   int receive_buffer_bytes = 1 << 20;      ///< SO_RCVBUF request
 };
 
-/// Every datagram counts once: datagrams = applied + the sum of dropped.
+/// Every datagram counts once: datagrams = applied + the sum of dropped, in every snapshot
+/// (a datagram is counted together with its outcome, once it has been applied or dropped).
 struct UdpStats {
-  std::uint64_t datagrams = 0;  ///< received, valid or not
+  std::uint64_t datagrams = 0;  ///< received and handled (applied or dropped), valid or not
   /// decoded and applied to the state store (a traffic list also when the store refused some
   /// of its objects, not when it refused all: that is a too_many_objects drop)
   std::uint64_t applied = 0;
