@@ -343,7 +343,7 @@ bool validateSurfaceScattering(int samples) {
                                 : Result<std::shared_ptr<const FogLightTable>>(Error{"no fog light table"});
     std::shared_ptr<const AnnulusMeanMap> map;
     if (fogTable && !std::holds_alternative<IsotropicProfile>(c.lamp.profile->model()))
-      map = AnnulusMeanMap::build(*c.lamp.profile, (*fogTable)->edges(), false, pool.get());
+      map = AnnulusMeanMap::build(c.lamp.profile, (*fogTable)->edges(), false, pool.get());
     auto ev = AirlightEvaluator::build(c.lamp, fog, AirlightMethod::Accurate, AirlightOptions{});
     if (!pt || !ev) {
       std::printf("  %s: %s\n", c.name.c_str(), (!pt ? pt.error() : ev.error()).message.c_str());

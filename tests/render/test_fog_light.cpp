@@ -116,7 +116,7 @@ TEST(FogLight, AnnulusMapsHoldTheAnnulusMeans) {
   ThreadPool pool(2);
   // Isotropic: every annulus holds the intensity.
   const auto iso = makeProfile(IsotropicProfile{250.0}).value();
-  const auto isoMap = AnnulusMeanMap::build(*iso, edges, false, &pool);
+  const auto isoMap = AnnulusMeanMap::build(iso, edges, false, &pool);
   std::vector<double> got(bins), want(bins);
   isoMap->lookup(glm::normalize(Vec3(0.3, -0.5, 0.8)), got.data());
   for (double v : got) EXPECT_NEAR(v, 250.0, 1e-3);
@@ -124,7 +124,7 @@ TEST(FogLight, AnnulusMapsHoldTheAnnulusMeans) {
   // reach of them (every bin here is at least 3° wide, the grid step).
   const auto beam =
       loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
-  const auto map = AnnulusMeanMap::build(*beam, edges, false, &pool);
+  const auto map = AnnulusMeanMap::build(beam, edges, false, &pool);
   const auto cells = profileSphereCells(*beam);
   const double d = kPi / 180.0;
   std::vector<double> gotH(3 * bins);
@@ -237,7 +237,7 @@ TEST(FogLight, TheHarmonicCarriesTheSideOfTheAxisTheLightLeavesOn) {
   const auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
   const auto ms = shippedMultipleScatteringTable(makeHenyeyGreenstein(0.85).value());
   ASSERT_NE(ms, nullptr);
-  const auto map = AnnulusMeanMap::build(*beam, ms->emissionEdges(), false, &pool);
+  const auto map = AnnulusMeanMap::build(beam, ms->emissionEdges(), false, &pool);
   for (double visibility : {50.0, 150.0}) {
     const Medium fog = hgFog(extinctionFromVisibility(visibility));
     const auto table = FogLightTable::buildOrderOne(ms->emissionEdges(), fog.phase, 1.0, &pool).value();
@@ -297,7 +297,7 @@ TEST(FogLight, TheCoefficientsAreEachLampsIrradiance) {
   ThreadPool pool(2);
   const auto table = FogLightTable::get(ms, fog.phase, 1.0, &pool).value();
   const auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
-  const auto map = AnnulusMeanMap::build(*beam, table->edges(), false, &pool);
+  const auto map = AnnulusMeanMap::build(beam, table->edges(), false, &pool);
   FogLightFrame frame;
   frame.extinction = fog.extinction_per_m;
   frame.table = table.get();

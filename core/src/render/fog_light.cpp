@@ -404,7 +404,8 @@ double FogLightTable::irradiance(double opticalDistance, double mu, const double
   return std::max(0.0, e);
 }
 
-std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profile, const std::vector<double>& edges,
+std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const std::shared_ptr<const Profile>& profile,
+                                                            const std::vector<double>& edges,
                                                             bool frontOnly, ThreadPool* pool) {
   std::shared_ptr<AnnulusMeanMap> m(new AnnulusMeanMap());
   m->bins_ = edges.size() - 1;
@@ -417,7 +418,7 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
   // 24 azimuths, as until 2026-11-28, a bin's mean was off by up to 38 % (high beam), 61 % (front
   // fog lamp) and 89 % (low beam) of itself plus 1 % of the largest bin, against 16 sub-annuli ×
   // 1 440 azimuths, at directions to road points 3–80 m ahead and behind a lamp; the cells, 4–5 %.
-  const std::shared_ptr<const ProfileSphereCells> cells = profileSphereCells(profile);
+  const std::shared_ptr<const ProfileSphereCells> cells = sharedProfileSphereCells(profile);
   auto row = [&](std::size_t ia) {
     std::vector<double> out(bins);
     std::vector<Vec3> first(bins);
@@ -425,7 +426,7 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const Profile& profi
     for (std::size_t ib = 0; ib + 1 < nB; ++ib) {
       const double b = static_cast<double>(ib) * kMapStep;
       const Vec3 w{std::cos(a), std::sin(a) * std::cos(b), std::sin(a) * std::sin(b)};
-      cellAnnulusMeans(profile, cells.get(), w, edges.data(), bins, out.data(), frontOnly, nullptr, first.data(), kGlowBands);
+      cellAnnulusMeans(*profile, cells.get(), w, edges.data(), bins, out.data(), frontOnly, nullptr, first.data());
       float* v = &m->v_[(ia * nB + ib) * bins * kFloats];
       for (std::size_t k = 0; k < bins; ++k) {
         v[kFloats * k] = static_cast<float>(out[k]);

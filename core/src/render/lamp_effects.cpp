@@ -294,13 +294,13 @@ std::shared_ptr<const ProfileSphereCells> profileSphereCells(const Profile& prof
   return cells;
 }
 
-namespace {
-
-std::shared_ptr<const ProfileSphereCells> sphereCells(const std::shared_ptr<const Profile>& profile) {
+std::shared_ptr<const ProfileSphereCells> sharedProfileSphereCells(const std::shared_ptr<const Profile>& profile) {
   // Kept while a lamp holds its profile (SharedCache's owner), the 16 last alive regardless.
   static SharedCache<const Profile*, ProfileSphereCells> cache(16);
   return cache.get(profile.get(), [&] { return profileSphereCells(*profile); }, profile);
 }
+
+namespace {
 
 // Emission bins at least this wide are summed from the sphere cells (their bands ≥ 2.3° across,
 // 1.5 cells); narrower ones, whose annuli are small around the axis or its opposite, are sampled
@@ -323,12 +323,12 @@ void glowAnnulusMeans(const Lamp& lamp, const Vec3& eye, const double* edges, st
   const Vec3 axis = lampFromWorld * (d / len);  // towards the eye
   bool anyWide = false;
   for (std::size_t k = 0; k < bins; ++k) anyWide = anyWide || edges[k + 1] - edges[k] >= kWideBin;
-  cellAnnulusMeans(*lamp.profile, anyWide ? sphereCells(lamp.profile).get() : nullptr, axis, edges, bins, out, frontOnly,
+  cellAnnulusMeans(*lamp.profile, anyWide ? sharedProfileSphereCells(lamp.profile).get() : nullptr, axis, edges, bins, out, frontOnly,
                    bandMeans);
 }
 
 void cellAnnulusMeans(const Profile& profile, const ProfileSphereCells* cells, const Vec3& axis, const double* edges,
-                      std::size_t bins, double* out, bool frontOnly, double* bandMeans, Vec3* harmonic, int narrowBands) {
+                      std::size_t bins, double* out, bool frontOnly, double* bandMeans, Vec3* harmonic) {
   for (std::size_t k = 0; k < bins; ++k) out[k] = 0.0;
   if (bandMeans != nullptr) std::fill(bandMeans, bandMeans + bins * kGlowBands, 0.0);
   if (harmonic != nullptr) std::fill(harmonic, harmonic + bins, Vec3(0.0));
@@ -343,7 +343,7 @@ void cellAnnulusMeans(const Profile& profile, const ProfileSphereCells* cells, c
     // outer edge (at least 24).
     const double outer = edges[k + 1] <= 0.5 * kPi ? std::sin(edges[k + 1]) : edges[k] >= 0.5 * kPi ? std::sin(edges[k]) : 1.0;
     const int az = std::max(24, static_cast<int>(std::ceil(2.0 * kPi * outer / kArc)));
-    annulusMeans(profile, axis, edges + k, 1, out + k, frontOnly, bandMeans != nullptr ? kGlowBands : narrowBands,
+    annulusMeans(profile, axis, edges + k, 1, out + k, frontOnly, kGlowBands,
                  harmonic != nullptr ? harmonic + k : nullptr, bandMeans != nullptr ? bandMeans + k * kGlowBands : nullptr,
                  az);
   }

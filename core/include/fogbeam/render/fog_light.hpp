@@ -182,7 +182,8 @@ struct FogLightAzimuthal {
 class AnnulusMeanMap {
  public:
   /// `frontOnly`: directions behind the lamp's axis are dark (the driver's own lamps, as the glow).
-  [[nodiscard]] static std::shared_ptr<const AnnulusMeanMap> build(const Profile& profile,
+  /// The profile's sphere cells are the glow's (sharedProfileSphereCells): made once per profile.
+  [[nodiscard]] static std::shared_ptr<const AnnulusMeanMap> build(const std::shared_ptr<const Profile>& profile,
                                                                    const std::vector<double>& edges, bool frontOnly,
                                                                    ThreadPool* pool = nullptr);
   /// Ī_k for the lamp-frame unit direction `w`, k < bins, into means[k], and (dipoles not null)

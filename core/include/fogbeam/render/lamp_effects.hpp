@@ -167,15 +167,18 @@ inline constexpr int kGlowBands = 4;
 /// which glowAnnulusMeans sums for annuli at least 10° wide (~25 ms to make: 16 look-ups a cell).
 struct ProfileSphereCells;
 [[nodiscard]] std::shared_ptr<const ProfileSphereCells> profileSphereCells(const Profile& profile);
+/// The same, shared: kept while anyone holds `profile` (the 16 last made kept regardless), so the
+/// glow and the fog light's maps of one lamp file make its cells once. Thread-safe.
+[[nodiscard]] std::shared_ptr<const ProfileSphereCells> sharedProfileSphereCells(
+    const std::shared_ptr<const Profile>& profile);
 /// glowAnnulusMeans about the lamp-frame unit direction `axis` of `profile`, from its `cells`
 /// (null: the wide annuli stay 0), with (harmonic not null) each annulus' first azimuthal
 /// harmonic as annulusMeans gives it (from the cells for the wide annuli: Σ I Ω ê / Σ Ω, ê from
-/// each cell's centre), `narrowBands` bands for the sampled narrow annuli when bandMeans is null
-/// (with bandMeans: kGlowBands). ~70–100 µs with cells of a headlamp (`fogbeam/render/fog_light.hpp`'s
+/// each cell's centre), kGlowBands bands for the sampled narrow annuli. ~35–85 µs with cells of a headlamp (`fogbeam/render/fog_light.hpp`'s
 /// AnnulusMeanMap calls it per node). Thread-safe.
 void cellAnnulusMeans(const Profile& profile, const ProfileSphereCells* cells, const Vec3& axis, const double* edges,
                       std::size_t bins, double* out, bool frontOnly = false, double* bandMeans = nullptr,
-                      Vec3* harmonic = nullptr, int narrowBands = kGlowBands);
+                      Vec3* harmonic = nullptr);
 /// The same about the lamp-frame unit direction `axis` of `profile`: 4 bands uniform in cos η ×
 /// 24 azimuths per annulus, `narrowBands` bands for annuli narrower than 10°. `harmonic` (null:
 /// not wanted): per annulus the first azimuthal harmonic Ī₁ (cd, a lamp-frame vector
