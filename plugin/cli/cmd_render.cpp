@@ -117,8 +117,12 @@ int runRender(const RenderOptions& o) {
   std::string surfaceName = "CPU, planes only";
   double surfaceMs = 0.0;
   std::unique_ptr<GlSurfacePass> gl;
+  // The view tables' cache directory also keeps the fog light's annulus maps.
+  const std::string tableCache = tableCacheDirFor(o.tableCache);
   if (o.surface != "cpu") {
-    auto created = GlSurfacePass::create();
+    GlOptions glOptions;
+    glOptions.table_cache_dir = tableCache;
+    auto created = GlSurfacePass::create(glOptions);
     if (created) {
       gl = std::move(created).value();
     } else if (o.surface == "gl" || gpuAirlight) {
@@ -151,10 +155,16 @@ int runRender(const RenderOptions& o) {
       std::fprintf(stderr, "fogbeam render: note: the CPU surface pass draws planes only; glTF '%s' is not drawn\n",
                    scene->gltf_path->c_str());
     SurfaceShader shader;  // planes and the bonnet, SIMD (renderSurfacesCpu is its double-precision oracle)
+    shader.setTableCacheDir(tableCache);
     kernels::ShadeFrame frame;
     ThreadPool pool(o.threads);
     shader.render(*scene, frame, surface, &pool);
+    if (const std::string e = shader.takeTableCacheError(); !e.empty())
+      std::fprintf(stderr, "fogbeam render: fog-light map not cached: %s\n", e.c_str());
   }
+  if (gl)
+    if (const std::string e = gl->takeTableCacheError(); !e.empty())
+      std::fprintf(stderr, "fogbeam render: fog-light map not cached: %s\n", e.c_str());
   surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
   const std::size_t pixels = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);
@@ -170,7 +180,7 @@ int runRender(const RenderOptions& o) {
     t0 = Clock::now();
     FastPathOptions fast;
     fast.moving_lamps = parseMovingLampPath(o.movingLamps).value_or(MovingLampPath::Pencil);
-    fast.table_cache_dir = tableCacheDirFor(o.tableCache);
+    fast.table_cache_dir = tableCache;
     auto evaluator = AirlightImageEvaluator::build(*scene, *method, {}, o.threads, fast);
     if (!evaluator) {
       std::fprintf(stderr, "fogbeam render: %s\n", evaluator.error().message.c_str());

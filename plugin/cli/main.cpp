@@ -164,8 +164,8 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
                   "accurate method per pixel)")
       ->check(CLI::IsMember({"pencil", "map", "per-ray"}));
   sub->add_option("--table-cache", o->tableCache,
-                  "where the vehicle lamps' view tables are kept between runs: auto (default: $XDG_CACHE_HOME/fogbeam "
-                  "or ~/.cache/fogbeam) | off | a directory");
+                  "where the vehicle lamps' view tables (and the fog light's annulus maps) are kept between runs: "
+                  "auto (default: $XDG_CACHE_HOME/fogbeam or ~/.cache/fogbeam) | off | a directory");
   addExposureOption(sub, o->exposure,
                     "PNG exposure: auto (default: the frame's 99.5th percentile of luminance, lamp images left out, "
                     "shown at 0.8 of white; EV clamped to [-16, 6]; printed) | EV in [-20, 20]: x = L * 2^EV / (1 cd/m2), "

@@ -1,6 +1,7 @@
 // fogbeam — the per-frame step shared by serve and replay (frame_pipeline.hpp).
 #include <fogbeam/gl/surface_pass.hpp>
 #include <fogbeam/plugin/frame_pipeline.hpp>
+#include <fogbeam/render/airlight_image.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -11,7 +12,9 @@ namespace fogbeam::plugin {
 Result<SurfacePass> openSurfacePass(const ServiceConfig& config) {
   SurfacePass pass;
   if (config.surface == "cpu") return pass;
-  auto g = GlSurfacePass::create();
+  GlOptions options;
+  options.table_cache_dir = tableCacheDirFor(config.table_cache);  // the fog light's annulus maps
+  auto g = GlSurfacePass::create(options);
   if (g) {
     pass.gl = std::move(g).value();
     return pass;

@@ -409,6 +409,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->method = *m;
   impl->fast.view_table_step_deg = config.view_table_step_deg;
   impl->fast.table_cache_dir = tableCacheDirFor(config.table_cache);
+  impl->cpuSurfaces.setTableCacheDir(impl->fast.table_cache_dir);  // the fog light's annulus maps
   impl->fast.moving_lamps = parseMovingLampPath(config.moving_lamps).value_or(MovingLampPath::Pencil);
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
@@ -744,6 +745,17 @@ Status ChannelRenderer::Impl::renderSurfaces(Begun& b, bool overlapped) {
     // so the pool does not change a pixel.
     if (overlapped && !surfacePool) surfacePool = std::make_unique<ThreadPool>(config->threads);
     cpuSurfaces.render(b.lit, cpuShadeFrame, b.surface, overlapped ? surfacePool.get() : framePool.get());
+  }
+  // A fog-light annulus map that could not be stored in the table cache: the next start builds
+  // it again, nothing else is lost. Logged at most every 10 s.
+  std::string cacheError = cpuSurfaces.takeTableCacheError();
+  if (gl && cacheError.empty()) cacheError = gl->takeTableCacheError();
+  if (!cacheError.empty()) {
+    static std::atomic<std::int64_t> lastLog{0};
+    const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
+    std::int64_t last = lastLog.load();
+    if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
+      spdlog::warn("render: fog-light map not cached ({}): the next start builds it again", cacheError);
   }
   return Ok{};
 }

@@ -1,9 +1,13 @@
 // The vehicle lamps' view tables on disk (FastPathOptions::table_cache_dir): a second evaluator
 // with the same lamps, view and fog loads them and renders the same bytes; anything else it
-// depends on, a damaged file or another key is a miss, never a wrong table.
+// depends on, a damaged file or another key is a miss, never a wrong table. The fog light's
+// annulus maps (AnnulusMeanMap::build's cacheDir) share the directory and its checks.
+#include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
 #include <fogbeam/render/airlight_image.hpp>
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/render/surface.hpp>
+#include <fogbeam/util/thread_pool.hpp>
 
 #include "view_table_cache.hpp"
 
@@ -165,6 +169,77 @@ TEST(ViewTableCache, TheOldestFilesGoWhenTheDirectoryIsFull) {
   EXPECT_FALSE(fs::exists(files[3]));
   EXPECT_TRUE(fs::exists(files[4]));
   EXPECT_TRUE(fs::exists(dir.path / "unrelated.txt"));
+}
+
+// The files of one kind ("vt", "am") in `dir`.
+std::vector<fs::path> cacheFiles(const fs::path& dir, const std::string& kind) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec))
+    if (it->path().filename().string().rfind(kind + "-", 0) == 0) out.push_back(it->path());
+  return out;
+}
+
+TEST(FogLightMapCache, ASecondBuildLoadsTheSameMapAndAnotherKeyOrADamagedFileIsAMiss) {
+  TempDir dir;
+  const auto ms = shippedMultipleScatteringTable(makeHenyeyGreenstein(0.85).value());
+  ASSERT_NE(ms, nullptr);
+  const std::vector<double>& edges = ms->emissionEdges();
+  const auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
+  ThreadPool pool(2);
+  std::string error;
+  const auto built = AnnulusMeanMap::build(beam, edges, false, &pool, dir.path.string(), &error);
+  EXPECT_FALSE(built->fromCache());
+  EXPECT_TRUE(error.empty()) << error;
+  const auto files = cacheFiles(dir.path, "am");
+  ASSERT_EQ(files.size(), 1u);
+
+  // The same profile data (another load of the file: another object), edges and flag: loaded,
+  // every float as built.
+  const auto again = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies").value();
+  const auto loaded = AnnulusMeanMap::build(again, edges, false, &pool, dir.path.string(), &error);
+  EXPECT_TRUE(loaded->fromCache());
+  EXPECT_EQ(loaded->rows(), built->rows());
+  EXPECT_EQ(loaded->columns(), built->columns());
+  EXPECT_EQ(loaded->bins(), built->bins());
+  EXPECT_TRUE(loaded->values() == built->values());
+
+  // The driver's own lamp (front only) is another key: a miss, built and stored beside (a low
+  // beam sends nothing backwards, so its floats are the same here).
+  const auto front = AnnulusMeanMap::build(beam, edges, true, &pool, dir.path.string(), &error);
+  EXPECT_FALSE(front->fromCache());
+  EXPECT_EQ(cacheFiles(dir.path, "am").size(), 2u);
+
+  // One byte of the stored floats changed: the checksum fails, the map is built again (the
+  // same floats) and stored again.
+  {
+    std::fstream f(files[0], std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(static_cast<std::streamoff>(fs::file_size(files[0]) / 2));
+    f.put('\x5a');
+  }
+  const auto rebuilt = AnnulusMeanMap::build(beam, edges, false, &pool, dir.path.string(), &error);
+  EXPECT_FALSE(rebuilt->fromCache());
+  EXPECT_TRUE(rebuilt->values() == built->values());
+  EXPECT_TRUE(AnnulusMeanMap::build(beam, edges, false, &pool, dir.path.string(), &error)->fromCache());
+  EXPECT_TRUE(error.empty()) << error;
+}
+
+TEST(FogLightMapCache, AnUnwritableDirectoryIsReportedAndTheMapIsBuilt) {
+  TempDir dir;
+  fs::create_directories(dir.path);
+  const fs::path file = dir.path / "a-file";
+  std::ofstream(file) << "not a directory";
+  const auto iso = makeProfile(IsotropicProfile{250.0}).value();
+  const std::vector<double> edges{0.0, kPi / 3.0, 2.0 * kPi / 3.0, kPi};
+  ThreadPool pool(2);
+  std::string error;
+  const auto map = AnnulusMeanMap::build(iso, edges, false, &pool, (file / "cache").string(), &error);
+  ASSERT_NE(map, nullptr);
+  EXPECT_FALSE(map->fromCache());
+  EXPECT_NE(error.find("cannot create the table cache directory"), std::string::npos) << error;
+  double means[3];
+  map->lookup(glm::normalize(Vec3(0.2, 0.5, -0.7)), means);
+  for (double m : means) EXPECT_NEAR(m, 250.0, 1e-3);
 }
 
 TEST(ViewTableCache, SettingsNameTheDirectory) {

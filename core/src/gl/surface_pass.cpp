@@ -516,6 +516,7 @@ Result<std::unique_ptr<GlSurfacePass>> GlSurfacePass::create(const GlOptions& op
   auto impl = std::make_unique<Impl>(std::move(ctx).value(), std::move(description), timerQuery, cpuShading,
                                      options.shading_threads);
   if (Status s = impl->init(); !s) return s.error();
+  impl->shader.setTableCacheDir(options.table_cache_dir);
   return std::unique_ptr<GlSurfacePass>(new GlSurfacePass(std::move(impl)));
 }
 
@@ -549,6 +550,7 @@ SurfaceShading GlSurfacePass::shading() const noexcept {
   return impl_->cpuShading ? SurfaceShading::Cpu : SurfaceShading::Gpu;
 }
 std::string GlSurfacePass::description() const { return impl_->description; }
+std::string GlSurfacePass::takeTableCacheError() { return impl_->shader.takeTableCacheError(); }
 const GlSurfaceStats& GlSurfacePass::stats() const noexcept { return impl_->stats; }
 
 }  // namespace fogbeam

@@ -8,6 +8,7 @@
 #include <fogbeam/util/thread_pool.hpp>
 
 #include "glow_quadrature.hpp"
+#include "render/view_table_cache.hpp"
 
 #include <boost/math/quadrature/gauss.hpp>
 
@@ -15,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <tuple>
 
 namespace fogbeam {
@@ -406,13 +408,28 @@ double FogLightTable::irradiance(double opticalDistance, double mu, const double
 
 std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const std::shared_ptr<const Profile>& profile,
                                                             const std::vector<double>& edges,
-                                                            bool frontOnly, ThreadPool* pool) {
+                                                            bool frontOnly, ThreadPool* pool,
+                                                            const std::string& cacheDir, std::string* cacheError) {
   std::shared_ptr<AnnulusMeanMap> m(new AnnulusMeanMap());
   m->bins_ = edges.size() - 1;
   m->nA_ = kMapFineRows + static_cast<int>(std::lround((kPi - kMapFineEnd) / kMapStep)) + 1;  // 0 … 180°
   m->nB_ = static_cast<int>(std::lround(2.0 * kPi / kMapStep)) + 1;  // 0 … 360°, the last = the first
   const std::size_t bins = m->bins_, nB = static_cast<std::size_t>(m->nB_);
-  m->v_.assign(static_cast<std::size_t>(m->nA_) * nB * bins * kFloats, 0.0f);
+  const std::size_t size = static_cast<std::size_t>(m->nA_) * nB * bins * kFloats;
+  // What the map's values depend on besides the code (FOGBEAM_TABLE_CODE_HASH covers this file
+  // and lamp_effects.cpp): the profile's data, the edges, frontOnly and the grid.
+  detail::TableKey key;
+  if (!cacheDir.empty()) {
+    key.add("annulus-map").addProfile(*profile).add(static_cast<std::int64_t>(frontOnly ? 1 : 0));
+    key.add(static_cast<std::int64_t>(m->nA_)).add(static_cast<std::int64_t>(m->nB_)).add(static_cast<std::int64_t>(kFloats));
+    key.add(static_cast<std::int64_t>(edges.size()));
+    for (double e : edges) key.add(e);
+    if (detail::loadFloats(cacheDir, "am", key, m->v_) && m->v_.size() == size) {
+      m->fromCache_ = true;
+      return m;
+    }
+  }
+  m->v_.assign(size, 0.0f);
   // The nodes' annuli as the glow's (cellAnnulusMeans): annuli ≥ 10° wide summed over the
   // profile's ~1.5° sphere cells, narrower ones sampled with azimuths ≤ 1.5° apart. Sampled at
   // 24 azimuths, as until 2026-11-28, a bin's mean was off by up to 38 % (high beam), 61 % (front
@@ -436,6 +453,10 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const std::shared_pt
     std::copy_n(&m->v_[(ia * nB) * bins * kFloats], bins * kFloats, &m->v_[(ia * nB + nB - 1) * bins * kFloats]);
   };
   parallelFor(pool, static_cast<std::size_t>(m->nA_), row);
+  if (!cacheDir.empty()) {
+    if (Status st = detail::storeFloats(cacheDir, "am", key, m->v_); !st && cacheError != nullptr)
+      *cacheError = st.error().message;
+  }
   return m;
 }
 

@@ -142,7 +142,7 @@ void SurfaceShader::prepareFogLight(const Scene& scene, FogLightFrame& f, Thread
     auto it = std::find_if(fogMaps_.begin(), fogMaps_.end(),
                            [&](const FogMap& m) { return m.profile == l.profile && m.frontOnly == front; });
     if (it == fogMaps_.end()) {
-      fogMaps_.push_back(FogMap{l.profile, front, AnnulusMeanMap::build(l.profile, fogTable_->edges(), front, pool)});
+      fogMaps_.push_back(FogMap{l.profile, front, AnnulusMeanMap::build(l.profile, fogTable_->edges(), front, pool, cacheDir_, &cacheError_)});
       it = std::prev(fogMaps_.end());
     }
     k.map = it->map.get();

@@ -84,10 +84,91 @@ class Reader {
   std::size_t n_, at_ = 0;
 };
 
-std::filesystem::path fileFor(const std::filesystem::path& dir, const TableKey& key) {
-  char name[40];
-  std::snprintf(name, sizeof name, "vt-%016llx.bin", static_cast<unsigned long long>(key.hash()));
+// Annulus maps (storeFloats with kind "am"): the same layout with a float array as the body.
+constexpr char kFloatsMagic[8] = {'F', 'B', 'F', 'L', 'C', 'A', 'C', '1'};
+
+// "<kind>-<hash>.bin": view tables are "vt", the fog light's annulus maps "am" (evictOldest
+// counts both).
+std::filesystem::path fileFor(const std::filesystem::path& dir, const TableKey& key, std::string_view kind = "vt") {
+  char name[48];
+  std::snprintf(name, sizeof name, "%.*s-%016llx.bin", static_cast<int>(kind.size()), kind.data(),
+                static_cast<unsigned long long>(key.hash()));
   return dir / name;
+}
+
+// The file's bytes with its checksum verified; `body` = their length less the checksum's.
+bool readVerified(const std::filesystem::path& path, std::string& file, std::size_t& body) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  if (!in) return false;
+  const std::streamoff size = in.tellg();
+  if (size <= 0) return false;
+  file.assign(static_cast<std::size_t>(size), '\0');
+  in.seekg(0);
+  if (!in.read(file.data(), size)) return false;
+  if (file.size() < sizeof kMagic + sizeof(std::uint64_t) * 2) return false;
+  body = file.size() - sizeof(std::uint64_t);
+  std::uint64_t sum = 0;
+  std::memcpy(&sum, file.data() + body, sizeof sum);
+  return sum == fnv1a(file.data(), body);
+}
+
+// The magic, the code version and key bytes, the near values (within TableKey::kTolerance).
+bool readHeader(Reader& r, const char (&magicWanted)[8], const TableKey& key) {
+  const char* magic = nullptr;
+  if (!r.skip(sizeof magicWanted, magic) || std::memcmp(magic, magicWanted, sizeof magicWanted) != 0) return false;
+  std::uint64_t keyLen = 0;
+  const char* keyBytes = nullptr;
+  const std::string code = FOGBEAM_TABLE_CODE_HASH;
+  if (!r.get(keyLen) || keyLen != code.size() + key.bytes().size() || !r.skip(keyLen, keyBytes) ||
+      std::memcmp(keyBytes, code.data(), code.size()) != 0 ||
+      std::memcmp(keyBytes + code.size(), key.bytes().data(), key.bytes().size()) != 0)
+    return false;
+  std::uint64_t nearCount = 0;
+  if (!r.get(nearCount) || nearCount != key.near().size()) return false;
+  for (double want : key.near()) {
+    double v = 0.0;
+    if (!r.get(v) || !(std::abs(v - want) <= TableKey::kTolerance)) return false;
+  }
+  return true;
+}
+
+void writeHeader(Writer& w, const char (&magic)[8], const TableKey& key) {
+  w.bytes(magic, sizeof magic);
+  const std::string code = FOGBEAM_TABLE_CODE_HASH;
+  w.put(static_cast<std::uint64_t>(code.size() + key.bytes().size()));
+  w.bytes(code.data(), code.size());
+  w.bytes(key.bytes().data(), key.bytes().size());
+  w.put(static_cast<std::uint64_t>(key.near().size()));
+  for (double v : key.near()) w.put(v);
+}
+
+// Appends the checksum and puts the file in place under `target` (in `dir`, created if need
+// be): a name of its own per process and call, then an atomic rename; then trims `dir`.
+Status writeInPlace(const std::filesystem::path& dir, const std::filesystem::path& target, Writer& w) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Error{dir.string() + ": cannot create the table cache directory: " + ec.message()};
+  w.put(fnv1a(w.data().data(), w.data().size()));
+  static std::atomic<unsigned> counter{0};
+  std::filesystem::path tmp = target;
+  tmp += ".tmp." + std::to_string(static_cast<long>(::getpid())) + "." + std::to_string(counter.fetch_add(1));
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(w.data().data(), static_cast<std::streamsize>(w.data().size()));
+    out.close();
+    if (!out) {
+      std::filesystem::remove(tmp, ec);
+      return Error{tmp.string() + ": cannot write the table cache file"};
+    }
+  }
+  std::filesystem::rename(tmp, target, ec);
+  if (ec) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    return Error{target.string() + ": cannot rename the table cache file into place: " + ec.message()};
+  }
+  evictOldest(dir, target);
+  return Ok{};
 }
 }  // namespace
 
@@ -154,34 +235,11 @@ std::uint64_t TableKey::hash() const noexcept {
 }
 
 bool loadLampTables(const std::filesystem::path& dir, const TableKey& key, LampTables& out) {
-  std::ifstream in(fileFor(dir, key), std::ios::binary | std::ios::ate);
-  if (!in) return false;
-  const std::streamoff size = in.tellg();
-  if (size <= 0) return false;
-  std::string file(static_cast<std::size_t>(size), '\0');
-  in.seekg(0);
-  if (!in.read(file.data(), size)) return false;
-  if (file.size() < sizeof kMagic + sizeof(std::uint64_t) * 2) return false;
-  const std::size_t body = file.size() - sizeof(std::uint64_t);
-  std::uint64_t sum = 0;
-  std::memcpy(&sum, file.data() + body, sizeof sum);
-  if (sum != fnv1a(file.data(), body)) return false;
+  std::string file;
+  std::size_t body = 0;
+  if (!readVerified(fileFor(dir, key), file, body)) return false;
   Reader r(file.data(), body);
-  const char* magic = nullptr;
-  if (!r.skip(sizeof kMagic, magic) || std::memcmp(magic, kMagic, sizeof kMagic) != 0) return false;
-  std::uint64_t keyLen = 0;
-  const char* keyBytes = nullptr;
-  const std::string code = FOGBEAM_TABLE_CODE_HASH;
-  if (!r.get(keyLen) || keyLen != code.size() + key.bytes().size() || !r.skip(keyLen, keyBytes) ||
-      std::memcmp(keyBytes, code.data(), code.size()) != 0 ||
-      std::memcmp(keyBytes + code.size(), key.bytes().data(), key.bytes().size()) != 0)
-    return false;
-  std::uint64_t nearCount = 0;
-  if (!r.get(nearCount) || nearCount != key.near().size()) return false;
-  for (double want : key.near()) {
-    double v = 0.0;
-    if (!r.get(v) || !(std::abs(v - want) <= TableKey::kTolerance)) return false;
-  }
+  if (!readHeader(r, kMagic, key)) return false;
   double guard[3];
   std::uint64_t count = 0;
   if (!r.get(guard[0]) || !r.get(guard[1]) || !r.get(guard[2]) || !r.get(count) || count != out.count) return false;
@@ -209,17 +267,8 @@ bool loadLampTables(const std::filesystem::path& dir, const TableKey& key, LampT
 }
 
 Status storeLampTables(const std::filesystem::path& dir, const TableKey& key, const LampTables& in) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) return Error{dir.string() + ": cannot create the table cache directory: " + ec.message()};
   Writer w;
-  w.bytes(kMagic, sizeof kMagic);
-  const std::string code = FOGBEAM_TABLE_CODE_HASH;
-  w.put(static_cast<std::uint64_t>(code.size() + key.bytes().size()));
-  w.bytes(code.data(), code.size());
-  w.bytes(key.bytes().data(), key.bytes().size());
-  w.put(static_cast<std::uint64_t>(key.near().size()));
-  for (double v : key.near()) w.put(v);
+  writeHeader(w, kMagic, key);
   for (double g : in.guard) w.put(g);
   w.put(static_cast<std::uint64_t>(in.count));
   for (std::size_t i = 0; i < in.count; ++i) {
@@ -239,29 +288,27 @@ Status storeLampTables(const std::filesystem::path& dir, const TableKey& key, co
     w.array(t.data);
     w.array(t.skyQuads);
   }
-  w.put(fnv1a(w.data().data(), w.data().size()));
-  // A name of its own per process and call, then an atomic rename over the final name.
-  static std::atomic<unsigned> counter{0};
-  const std::filesystem::path target = fileFor(dir, key);
-  std::filesystem::path tmp = target;
-  tmp += ".tmp." + std::to_string(static_cast<long>(::getpid())) + "." + std::to_string(counter.fetch_add(1));
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(w.data().data(), static_cast<std::streamsize>(w.data().size()));
-    out.close();
-    if (!out) {
-      std::filesystem::remove(tmp, ec);
-      return Error{tmp.string() + ": cannot write the table cache file"};
-    }
-  }
-  std::filesystem::rename(tmp, target, ec);
-  if (ec) {
-    std::error_code ignored;
-    std::filesystem::remove(tmp, ignored);
-    return Error{target.string() + ": cannot rename the table cache file into place: " + ec.message()};
-  }
-  evictOldest(dir, target);
-  return Ok{};
+  return writeInPlace(dir, fileFor(dir, key), w);
+}
+
+bool loadFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::vector<float>& out) {
+  std::string file;
+  std::size_t body = 0;
+  if (!readVerified(fileFor(dir, key, kind), file, body)) return false;
+  Reader r(file.data(), body);
+  if (!readHeader(r, kFloatsMagic, key)) return false;
+  std::vector<float> v;  // a damaged file leaves `out` as it was
+  if (!r.array(v, std::size_t{1} << 31) || r.at() != body) return false;
+  out = std::move(v);
+  return true;
+}
+
+Status storeFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,
+                   const std::vector<float>& data) {
+  Writer w;
+  writeHeader(w, kFloatsMagic, key);
+  w.array(data);
+  return writeInPlace(dir, fileFor(dir, key, kind), w);
 }
 
 void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& keep, std::uintmax_t maxBytes) {
@@ -277,7 +324,7 @@ void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& 
   std::error_code ec;
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (name.rfind("vt-", 0) != 0 || it->path().extension() != ".bin") continue;
+    if ((name.rfind("vt-", 0) != 0 && name.rfind("am-", 0) != 0) || it->path().extension() != ".bin") continue;
     std::error_code e1, e2;
     const auto bytes = it->file_size(e1);
     const auto time = it->last_write_time(e2);

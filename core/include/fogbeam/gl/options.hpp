@@ -2,6 +2,8 @@
 // gl::EglContext). Plain values, no GL or EGL type.
 #pragma once
 
+#include <string>
+
 namespace fogbeam {
 
 /// How the EGL display is chosen.
@@ -26,6 +28,9 @@ struct GlOptions {
   unsigned shading_threads = 0;  ///< threads lighting the geometry buffer (Cpu shading); 0: every core
   int device_index = 0;     ///< Device only: index into eglQueryDevicesEXT's list
   bool debug_context = false;  ///< request a debug context and log GL debug messages to stderr
+  /// Where the fog light's annulus maps are kept between runs (SurfaceShader::setTableCacheDir;
+  /// the view tables' cache directory, tableCacheDirFor); empty: built in every run.
+  std::string table_cache_dir;
 };
 
 }  // namespace fogbeam

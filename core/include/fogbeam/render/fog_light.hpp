@@ -178,14 +178,24 @@ struct FogLightAzimuthal {
 /// in the angle from the lamp's +x axis (0 … 180°) and 3° in the azimuth about it (atan2(z, y)),
 /// bilinear between nodes. Each node's annuli as the glow's (cellAnnulusMeans, lamp_effects.hpp:
 /// sphere cells for annuli ≥ 10° wide, fine azimuths for the others).
-/// Built once per (profile, bins, frontOnly): ~0.9–1.0 s for a tabulated file on 2 cores.
+/// Built once per (profile, bins, frontOnly): ~0.9–1.0 s for a tabulated file on 2 cores, or
+/// loaded from the table cache on disk (~10 ms) where an earlier run stored it.
 class AnnulusMeanMap {
  public:
   /// `frontOnly`: directions behind the lamp's axis are dark (the driver's own lamps, as the glow).
   /// The profile's sphere cells are the glow's (sharedProfileSphereCells): made once per profile.
+  /// `cacheDir` (empty: none): the table cache of the view tables (airlight_image.hpp,
+  /// FastPathOptions::table_cache_dir): the map is loaded from there when a run of the same
+  /// code stored it for the same profile data, edges and frontOnly, else built and stored
+  /// ("am-<hash>.bin"); a store that fails leaves its message in `cacheError` (not null) and the
+  /// built map is returned all the same.
   [[nodiscard]] static std::shared_ptr<const AnnulusMeanMap> build(const std::shared_ptr<const Profile>& profile,
                                                                    const std::vector<double>& edges, bool frontOnly,
-                                                                   ThreadPool* pool = nullptr);
+                                                                   ThreadPool* pool = nullptr,
+                                                                   const std::string& cacheDir = {},
+                                                                   std::string* cacheError = nullptr);
+  /// Whether build() loaded it from the table cache.
+  [[nodiscard]] bool fromCache() const noexcept { return fromCache_; }
   /// Ī_k for the lamp-frame unit direction `w`, k < bins, into means[k], and (dipoles not null)
   /// Ī₁_k, lamp frame, into dipoles[3k … 3k + 2] (made perpendicular to w).
   void lookup(const Vec3& w, double* means, double* dipoles = nullptr) const noexcept;
@@ -210,6 +220,7 @@ class AnnulusMeanMap {
   std::size_t bins_ = 0;
   int nA_ = 0, nB_ = 0;
   std::vector<float> v_;  // [iα][iβ][k][kFloats]
+  bool fromCache_ = false;
 };
 
 /// One frame's lamps for the fog light, camera-relative (positions in metres from the eye).

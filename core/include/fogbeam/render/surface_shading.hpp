@@ -36,6 +36,8 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 namespace fogbeam {
@@ -147,9 +149,15 @@ class SurfaceShader {
  public:
   /// This frame's camera, fog and lamps, in float (tabulated profiles are converted once and
   /// kept while the shader lives, keyed by identity). With the fog light on ([glow] enabled and
-  /// `surfaces`), its table (once per phase function and albedo, ~0.2 s) and each profile's
-  /// annulus map (once per profile, ~0.3 s) are built on first use, on `pool` when given.
+  /// `surfaces`), its table (once per phase function and albedo, ~0.1–0.2 s) and each
+  /// profile's annulus map (once per profile, ~0.9–1.0 s on 2 cores, or loaded from the table
+  /// cache: setTableCacheDir) are made on first use, on `pool` when given.
   void prepare(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool = nullptr);
+  /// Where the annulus maps are kept between runs (AnnulusMeanMap::build's cacheDir; empty, the
+  /// default: built in every run). Not to be called while prepare() runs.
+  void setTableCacheDir(std::string dir) { cacheDir_ = std::move(dir); }
+  /// The last failure to store a map there (empty: none since the last call).
+  [[nodiscard]] std::string takeTableCacheError() { return std::exchange(cacheError_, {}); }
   /// The fog light's part of prepare() alone (GPU shading, where the shaders read the table and
   /// maps): `fog` emptied when it is off or the fog's phase function has no multiple-scattering
   /// table; the same thread-safety as prepare().
@@ -189,6 +197,7 @@ class SurfaceShader {
     std::shared_ptr<const AnnulusMeanMap> map;
   };
   std::vector<FogMap> fogMaps_;
+  std::string cacheDir_, cacheError_;
 
 };
 
