@@ -1,10 +1,14 @@
-// candump -L log lines: every frame kind, every error, the log file reader and the replayer.
+// candump -L log lines and candump's screen format: every frame kind, every error, the log file
+// reader and the replayer.
 #include <fogbeam/ipc/candump.hpp>
 
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
 #include <random>
 #include <string>
 #include <vector>
@@ -182,6 +186,144 @@ TEST(CandumpFile, ErrorNamesFileAndLine) {
   EXPECT_EQ(missing.error().message.rfind(kCanData + "/no_such.log: cannot open", 0), 0u);
 }
 
+// ---- candump's screen format (candump.hpp) -------------------------------------------------------
+
+TEST(CandumpScreen, EveryFrameKind) {
+  CandumpLine l = parseOk(" (1700000000.123456)  can0  123   [4]  DE AD BE EF");
+  EXPECT_TRUE(l.timed);
+  EXPECT_DOUBLE_EQ(l.timestamp_s, 1700000000.123456);
+  EXPECT_DOUBLE_EQ(l.frame.timestamp_s, l.timestamp_s);
+  EXPECT_EQ(l.interface, "can0");
+  EXPECT_EQ(l.frame.id, 0x123u);
+  EXPECT_FALSE(l.frame.extended);
+  EXPECT_FALSE(l.frame.fd);
+  ASSERT_EQ(l.frame.len, 4);
+  EXPECT_EQ(l.frame.data[0], 0xDE);
+  EXPECT_EQ(l.frame.data[3], 0xEF);
+  EXPECT_EQ(l.frame.data[4], 0);
+
+  l = parseOk("  vcan0  1F334455   [2]  00 11");  // no -t
+  EXPECT_FALSE(l.timed);
+  EXPECT_EQ(l.timestamp_s, 0.0);
+  EXPECT_TRUE(l.frame.extended);
+  EXPECT_EQ(l.frame.id, 0x1F334455u);
+  EXPECT_EQ(l.frame.len, 2);
+  EXPECT_EQ(l.frame.data[1], 0x11);
+
+  l = parseOk("  can0  123   [4]  remote request");
+  EXPECT_TRUE(l.frame.remote);
+  EXPECT_EQ(l.frame.len, 4);
+  EXPECT_EQ(l.frame.data[0], 0);
+
+  l = parseOk("  can0  123   [0]");  // an empty data frame
+  EXPECT_FALSE(l.frame.remote);
+  EXPECT_EQ(l.frame.len, 0);
+
+  // CAN FD: two length digits; with -x the flags.
+  l = parseOk(" (0.250000)  can1  RX B E  123  [12]  00 11 22 33 44 55 66 77 88 99 AA BB");
+  EXPECT_TRUE(l.frame.fd);
+  EXPECT_TRUE(l.frame.brs);
+  EXPECT_TRUE(l.frame.esi);
+  ASSERT_EQ(l.frame.len, 12);
+  EXPECT_EQ(l.frame.data[11], 0xBB);
+  EXPECT_DOUBLE_EQ(l.timestamp_s, 0.25);
+  l = parseOk("  can0  TX - -  123  [08]  01 02 03 04 05 06 07 08");
+  EXPECT_TRUE(l.frame.fd);
+  EXPECT_FALSE(l.frame.brs);
+  EXPECT_EQ(l.frame.len, 8);
+  l = parseOk("  can0  RX - -  123   [2]  01 02");  // -x on a classic frame
+  EXPECT_FALSE(l.frame.fd);
+
+  // -8: the raw DLC of a classic 8-byte frame.
+  l = parseOk("  can0  123   {C}  00 11 22 33 44 55 66 77");
+  EXPECT_EQ(l.frame.len, 8);
+  EXPECT_EQ(l.frame.data[7], 0x77);
+
+  // -a: the ASCII column, which may hold blanks and quotes, is ignored.
+  l = parseOk("  can0  123   [4]  41 20 27 42         'A 'B'  ");
+  EXPECT_EQ(l.frame.len, 4);
+  EXPECT_EQ(l.frame.data[2], 0x27);
+
+  // -t A: a date (read as UTC; only the gaps matter).
+  l = parseOk(" (2023-11-14 22:13:20.250000)  can0  123   [1]  01");
+  EXPECT_DOUBLE_EQ(l.timestamp_s, 1700000000.25);
+  EXPECT_DOUBLE_EQ(parseOk(" (1970-01-01 00:00:00)  can0  123   [1]  01").timestamp_s, 0.0);
+  EXPECT_DOUBLE_EQ(parseOk(" (2000-03-01 00:00:01.5)  can0  123   [1]  01").timestamp_s, 951868801.5);
+}
+
+TEST(CandumpScreen, EveryError) {
+  EXPECT_EQ(parseError("  can0  123   [4]  DE AD"),
+            "expected 4 data byte(s) as hex pairs after '[4]' (byte 3), found the end of the line");
+  EXPECT_EQ(parseError("  can0  123   [2]  DE 0G"), "expected 2 data byte(s) as hex pairs after '[2]' (byte 2), found '0G'");
+  EXPECT_EQ(parseError("  can0  123   [1]  11011110"),  // candump -B
+            "expected 1 data byte(s) as hex pairs after '[1]' (byte 1), found '11011110'");
+  EXPECT_EQ(parseError("  can0  123   [1]  DE AD"), "expected the end of the line after 1 data byte(s), found 'AD'");
+  EXPECT_EQ(parseError("  can0  123   [9]  00"), "expected a classic frame's length 0-8, found '[9]'");
+  EXPECT_EQ(parseError("  can0  123  [13]  00"),
+            "expected a CAN FD length (0-8, 12, 16, 20, 24, 32, 48 or 64), found '[13]'");
+  EXPECT_EQ(parseError("  can0  1234   [1]  00"),
+            "expected a CAN id of 3 hex digits (11-bit) or 8 hex digits (29-bit) before the length '[n]', found '1234'");
+  EXPECT_EQ(parseError("  can0  800   [1]  00"), "expected an 11-bit id (3 hex digits, at most 7FF), found '800'");
+  EXPECT_EQ(parseError("  can0  20000080   [8]  00 00 00 00 00 00 00 00   ERRORFRAME"),
+            "expected a data or remote frame, found the error frame '20000080' (CAN_ERR_FLAG set; error frames, "
+            "logged by candump -e, are not supported)");
+  EXPECT_EQ(parseError("  [1]  00"), "expected an interface name (e.g. 'can0') of at most 64 characters, found '[1]'");
+  EXPECT_EQ(parseError("  can0  RX X -  123   [1]  00"), "expected the CAN FD flags 'B'/'-' and 'E'/'-' after RX, found 'X'");
+  EXPECT_EQ(parseError(" (17x.0)  can0  123   [1]  00"), "expected a timestamp '(seconds.microseconds)', found '(17x.0)'");
+  EXPECT_EQ(parseError(" (2023-13-14 22:13:20.25)  can0  123   [1]  00"),
+            "expected a timestamp '(YYYY-MM-DD HH:MM:SS.ffffff)', found '(2023-13-14 22:13:20.25)'");
+  EXPECT_EQ(parseError(" (2023-11-14 22:13:20,25)  can0  123   [1]  00"),
+            "expected a timestamp '(YYYY-MM-DD HH:MM:SS.ffffff)', found '(2023-11-14 22:13:20,25)'");
+  EXPECT_EQ(parseError(" (1.0  can0  123   [1]  00"),
+            "expected a timestamp '(seconds.microseconds)' closed by ')', found '(1.0'");
+  EXPECT_EQ(parseError("  can0  123   [2]  00 11   'x"), "expected the end of the line after 2 data byte(s), found ''x'");
+}
+
+TEST(CandumpFile, TheScreenCaptureOfTheFixtureGivesItsFrames) {
+  const Result<std::vector<CandumpLine>> log = loadCandump(kCanData + "/drive.log");
+  const Result<std::vector<CandumpLine>> screen = loadCandump(kCanData + "/drive_screen.log");
+  ASSERT_TRUE(log.has_value()) << log.error().message;
+  ASSERT_TRUE(screen.has_value()) << screen.error().message;
+  ASSERT_EQ(screen->size(), log->size());
+  for (std::size_t i = 0; i < log->size(); ++i) {
+    const CandumpLine &a = (*log)[i], &b = (*screen)[i];
+    EXPECT_EQ(b.timestamp_s, a.timestamp_s) << i;
+    EXPECT_EQ(b.interface, a.interface) << i;
+    EXPECT_EQ(b.frame.id, a.frame.id) << i;
+    EXPECT_EQ(b.frame.extended, a.frame.extended) << i;
+    EXPECT_EQ(b.frame.remote, a.frame.remote) << i;
+    EXPECT_EQ(b.frame.fd, a.frame.fd) << i;
+    EXPECT_EQ(b.frame.brs, a.frame.brs) << i;
+    EXPECT_EQ(b.frame.esi, a.frame.esi) << i;
+    EXPECT_EQ(b.frame.len, a.frame.len) << i;
+    EXPECT_EQ(b.frame.data, a.frame.data) << i;
+    EXPECT_EQ(b.frame.timestamp_s, a.frame.timestamp_s) << i;
+  }
+}
+
+TEST(CandumpFile, ScreenLinesWithoutTimestampsTakeThePreviousLinesTime) {
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("fogbeam_screen_" + std::to_string(::getpid()) + ".log");
+  {
+    std::ofstream out(path);
+    out << "  can0  123   [1]  01\n"
+           " (5.000000)  can0  123   [1]  02\n"
+           "  can0  123   [1]  03\n"
+           "(6.000000) can0 123#04\n"
+           "  can0  124   [1]  05\n";
+  }
+  const Result<std::vector<CandumpLine>> log = loadCandump(path.string());
+  std::filesystem::remove(path);
+  ASSERT_TRUE(log.has_value()) << log.error().message;
+  ASSERT_EQ(log->size(), 5u);
+  const double want[5] = {0.0, 5.0, 5.0, 6.0, 6.0};
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_EQ((*log)[i].timestamp_s, want[i]) << i;
+    EXPECT_EQ((*log)[i].frame.timestamp_s, want[i]) << i;
+    EXPECT_EQ((*log)[i].frame.data[0], i + 1) << i;
+  }
+}
+
 TEST(CandumpReplay, AsFastAsPossibleAndStopsWhenSinkSaysSo) {
   std::vector<CandumpLine> lines(5);
   for (std::size_t i = 0; i < lines.size(); ++i) lines[i].timestamp_s = 1000.0 + 100.0 * static_cast<double>(i);
@@ -228,11 +370,15 @@ TEST(CandumpReplay, ReproducesScaledGaps) {
 
 TEST(CandumpErrors, RandomLinesNeverCrash) {
   // 20 000 lines from a fixed seed: half random bytes over candump's alphabet, half single-
-  // character mutations of valid lines. Parsing fails cleanly or yields a consistent frame.
-  const std::string alphabet = "()0123456789.abcdefABCDEF#R_ \tvcan0xXT-\x01\xff";
+  // character mutations of valid lines (-L and screen format). Parsing fails cleanly or yields
+  // a consistent frame.
+  const std::string alphabet = "()0123456789.abcdefABCDEF#R_ \tvcan0xXT-\x01\xff[]{}':";
   const std::vector<std::string> valid = {
       "(1700000000.123456) vcan0 123#DEADBEEF", "(1.0) can0 18FEF121#F6", "(1.0) can0 123##1112233",
-      "(1.0) can0 123#R4", "(1.0) can0 123#0011223344556677_C", "(1.0) can0 123#11.22 T"};
+      "(1.0) can0 123#R4", "(1.0) can0 123#0011223344556677_C", "(1.0) can0 123#11.22 T",
+      // candump's screen format
+      " (1.000000)  can0  123   [2]  DE AD   '..'", "  can0  RX B -  123  [12]  00 11 22 33 44 55 66 77 88 99 AA BB",
+      "  can0  123   [4]  remote request", " (2023-11-14 22:13:20.250000)  can0  1F334455   {C}  00 11 22 33 44 55 66 77"};
   std::mt19937 rng(7);
   int accepted = 0;
   for (int trial = 0; trial < 20000; ++trial) {
