@@ -375,18 +375,33 @@ void FogLightTable::weighted(double opticalDistance, const float* binMeans, cons
     return;
   }
   // Rows blended first (one lerp per bin and coefficient), then weighed by the bins' means and
-  // dipoles.
+  // dipoles. Flat loops the compiler vectorises: the lerps over all bins at once, then per bin
+  // the four symmetric sums and, per dipole component e, the four sums D_q,e (kept as [e][q],
+  // a vector each, and written as out's [q][e] at the end). Each sum adds its bins in the same
+  // order as before: the same results to the bit (this runs per node and lamp of a frame).
   const float* a = dense_.data() + i0 * n;
   const float* b = a + n;
+  constexpr std::size_t kMaxBins = 64;
+  if (bins > kMaxBins) return;
+  float c[kMaxBins * kCoefficients];
+  for (std::size_t i = 0; i < n; ++i) c[i] = a[i] + w * (b[i] - a[i]);
+  float sym[kSymmetric] = {}, dip[3][kSymmetric] = {};
   for (std::size_t k = 0; k < bins; ++k) {
-    float c[kCoefficients];
-    for (std::size_t q = 0; q < kCoefficients; ++q) c[q] = a[k * kCoefficients + q] + w * (b[k * kCoefficients + q] - a[k * kCoefficients + q]);
-    for (std::size_t q = 0; q < kSymmetric; ++q) out[q] += binMeans[k] * c[q];
-    if (binDipoles != nullptr)
-      for (std::size_t q = 0; q < kSymmetric; ++q)
-        for (std::size_t e = 0; e < 3; ++e) out[kSymmetric + 3 * q + e] += binDipoles[3 * k + e] * c[kSymmetric + q];
+    const float* ck = c + k * kCoefficients;
+    for (std::size_t q = 0; q < kSymmetric; ++q) sym[q] += binMeans[k] * ck[q];
   }
-  for (std::size_t q = 0; q < kLampFloats; ++q) out[q] *= s;
+  if (binDipoles != nullptr)
+    for (std::size_t k = 0; k < bins; ++k) {
+      const float* ck = c + k * kCoefficients + kSymmetric;
+      for (std::size_t e = 0; e < 3; ++e) {
+        const float d = binDipoles[3 * k + e];
+        for (std::size_t q = 0; q < kSymmetric; ++q) dip[e][q] += d * ck[q];
+      }
+    }
+  for (std::size_t q = 0; q < kSymmetric; ++q) {
+    out[q] = sym[q] * s;
+    for (std::size_t e = 0; e < 3; ++e) out[kSymmetric + 3 * q + e] = dip[e][q] * s;
+  }
 }
 
 double FogLightTable::irradiance(double opticalDistance, double mu, const double* binMeans,
@@ -476,13 +491,24 @@ void AnnulusMeanMap::lookupInto(const Vec3& w, T* means, T* dipoles) const noexc
   const float* p10 = p00 + nB * node;
   const float* p11 = p10 + node;
   const float w00 = (1 - u) * (1 - v), w01 = (1 - u) * v, w10 = u * (1 - v), w11 = u * v;
-  auto at = [&](std::size_t i) { return w00 * p00[i] + w01 * p01[i] + w10 * p10[i] + w11 * p11[i]; };
-  for (std::size_t k = 0; k < bins_; ++k) means[k] = static_cast<T>(at(kFloats * k));
+  // The four nodes' blocks blended in one pass over their floats (means and harmonics
+  // interleaved, kFloats a bin): a loop the compiler vectorises, where one bin's four floats at a
+  // time were read with a stride (the frame's fog light calls this per node and lamp). The same
+  // sums in the same order as per float: the results are the same to the bit.
+  constexpr std::size_t kMaxBins = 64;
+  float at[kMaxBins * kFloats];
+  const std::size_t nf = std::min(bins_, kMaxBins) * kFloats;
+  for (std::size_t i = 0; i < nf; ++i) at[i] = w00 * p00[i] + w01 * p01[i] + w10 * p10[i] + w11 * p11[i];
+  for (std::size_t k = 0; k < bins_; ++k) means[k] = k < kMaxBins ? static_cast<T>(at[kFloats * k]) : T(0);
   if (dipoles == nullptr) return;
   // The nodes' harmonics are perpendicular to their own directions: the blend's part along w
   // is the nodes' spread, not light on either side, and goes.
   for (std::size_t k = 0; k < bins_; ++k) {
-    const Vec3 h{at(kFloats * k + 1), at(kFloats * k + 2), at(kFloats * k + 3)};
+    if (k >= kMaxBins) {
+      for (std::size_t e = 0; e < 3; ++e) dipoles[3 * k + e] = T(0);
+      continue;
+    }
+    const Vec3 h{at[kFloats * k + 1], at[kFloats * k + 2], at[kFloats * k + 3]};
     const Vec3 hp = h - glm::dot(h, w) * w;
     for (int e = 0; e < 3; ++e) dipoles[3 * k + static_cast<std::size_t>(e)] = static_cast<T>(hp[e]);
   }
