@@ -160,11 +160,11 @@ int runRender(const RenderOptions& o) {
     ThreadPool pool(o.threads);
     shader.render(*scene, frame, surface, &pool);
     if (const std::string e = shader.takeTableCacheError(); !e.empty())
-      std::fprintf(stderr, "fogbeam render: fog-light map not cached: %s\n", e.c_str());
+      std::fprintf(stderr, "fogbeam render: fog-light table or map not cached: %s\n", e.c_str());
   }
   if (gl)
     if (const std::string e = gl->takeTableCacheError(); !e.empty())
-      std::fprintf(stderr, "fogbeam render: fog-light map not cached: %s\n", e.c_str());
+      std::fprintf(stderr, "fogbeam render: fog-light table or map not cached: %s\n", e.c_str());
   surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
   const std::size_t pixels = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);

@@ -164,7 +164,7 @@ void addRenderCommand(CLI::App& app, int& exitCode) {
                   "accurate method per pixel)")
       ->check(CLI::IsMember({"pencil", "map", "per-ray"}));
   sub->add_option("--table-cache", o->tableCache,
-                  "where the vehicle lamps' view tables (and the fog light's annulus maps) are kept between runs: "
+                  "where the vehicle lamps' view tables (and the fog light's table and maps) are kept between runs: "
                   "auto (default: $XDG_CACHE_HOME/fogbeam or ~/.cache/fogbeam) | off | a directory");
   addExposureOption(sub, o->exposure,
                     "PNG exposure: auto (default: the frame's 99.5th percentile of luminance, lamp images left out, "

@@ -755,7 +755,7 @@ Status ChannelRenderer::Impl::renderSurfaces(Begun& b, bool overlapped) {
     const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
     std::int64_t last = lastLog.load();
     if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
-      spdlog::warn("render: fog-light map not cached ({}): the next start builds it again", cacheError);
+      spdlog::warn("render: fog-light table or map not cached ({}): the next start builds it again", cacheError);
   }
   return Ok{};
 }

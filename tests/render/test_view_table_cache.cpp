@@ -242,6 +242,45 @@ TEST(FogLightMapCache, AnUnwritableDirectoryIsReportedAndTheMapIsBuilt) {
   for (double m : means) EXPECT_NEAR(m, 250.0, 1e-3);
 }
 
+TEST(FogLightTableCache, AStoredTableLoadsAsBuiltAndAnotherAlbedoOrADamagedFileIsAMiss) {
+  TempDir dir;
+  const Phase phase = makeHenyeyGreenstein(0.85).value();
+  ThreadPool pool(2);
+  EXPECT_EQ(FogLightTable::loadShipped(phase, 0.95, dir.path.string()), nullptr);  // nothing stored yet
+  std::string error;
+  const auto built = FogLightTable::shipped(phase, 0.95, &pool, dir.path.string(), &error);
+  ASSERT_TRUE(built.has_value()) << built.error().message;
+  EXPECT_TRUE(error.empty()) << error;
+  const auto files = cacheFiles(dir.path, "fl");
+  ASSERT_EQ(files.size(), 1u);
+  const auto loaded = FogLightTable::loadShipped(phase, 0.95, dir.path.string());
+  ASSERT_NE(loaded, nullptr);
+  const FogLightTable& a = **built;
+  EXPECT_EQ(loaded->edges(), a.edges());
+  EXPECT_EQ(loaded->opticalDistances(), a.opticalDistances());
+  EXPECT_EQ(loaded->albedo(), a.albedo());
+  EXPECT_TRUE(loaded->dense() == a.dense());
+  EXPECT_TRUE(loaded->denseSums() == a.denseSums());
+  // What the frames read agrees to the bit, and what the build nodes give too.
+  const std::vector<float> means(a.bins(), 100.0f), dip(3 * a.bins(), 10.0f);
+  for (double T : {0.004, 0.3, 1.7, 12.0}) {
+    float x[FogLightTable::kLampFloats], y[FogLightTable::kLampFloats];
+    a.weighted(T, means.data(), dip.data(), 1.0f, x);
+    loaded->weighted(T, means.data(), dip.data(), 1.0f, y);
+    for (std::size_t q = 0; q < FogLightTable::kLampFloats; ++q) EXPECT_EQ(x[q], y[q]) << T;
+    std::vector<double> dm(a.bins(), 100.0);
+    EXPECT_EQ(a.irradiance(T, 0.4, dm.data()), loaded->irradiance(T, 0.4, dm.data())) << T;
+  }
+  EXPECT_EQ(FogLightTable::loadShipped(phase, 0.9, dir.path.string()), nullptr);                          // another albedo
+  EXPECT_EQ(FogLightTable::loadShipped(makeHenyeyGreenstein(0.8).value(), 0.95, dir.path.string()), nullptr);  // phase
+  {
+    std::fstream f(files[0], std::ios::binary | std::ios::in | std::ios::out);
+    f.seekp(static_cast<std::streamoff>(fs::file_size(files[0]) / 2));
+    f.put('\x5a');
+  }
+  EXPECT_EQ(FogLightTable::loadShipped(phase, 0.95, dir.path.string()), nullptr);  // damaged: a miss
+}
+
 TEST(ViewTableCache, SettingsNameTheDirectory) {
   EXPECT_EQ(tableCacheDirFor("off"), "");
   EXPECT_EQ(tableCacheDirFor("/var/cache/fb"), "/var/cache/fb");

@@ -15,8 +15,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
+#include <string_view>
 #include <tuple>
 
 namespace fogbeam {
@@ -297,14 +299,114 @@ Result<std::shared_ptr<const FogLightTable>> FogLightTable::build(const Multiple
   return std::shared_ptr<const FogLightTable>(std::move(t));
 }
 
+namespace {
+using TableCacheKey = std::tuple<const void*, PhaseIdentity, double>;
+// The tables alive in this process (get() and shipped()), the 4 most recent kept regardless.
+SharedCache<TableCacheKey, FogLightTable>& tableCache() {
+  static SharedCache<TableCacheKey, FogLightTable> cache(4);
+  return cache;
+}
+
+// The table's arrays as bytes (lengths first) for the table cache on disk, and back.
+template <class T>
+void putArray(std::string& out, const std::vector<T>& v) {
+  const auto n = static_cast<std::uint64_t>(v.size());
+  out.append(reinterpret_cast<const char*>(&n), sizeof n);
+  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+template <class T>
+bool getArray(std::string_view& in, std::vector<T>& v, std::size_t want) {
+  std::uint64_t n = 0;
+  if (in.size() < sizeof n) return false;
+  std::memcpy(&n, in.data(), sizeof n);
+  in.remove_prefix(sizeof n);
+  if (n != want || in.size() / sizeof(T) < n) return false;
+  v.resize(want);
+  std::memcpy(v.data(), in.data(), want * sizeof(T));
+  in.remove_prefix(want * sizeof(T));
+  return true;
+}
+}  // namespace
+
+std::string FogLightTable::toBytes() const {
+  std::string out;
+  putArray(out, std::vector<double>{albedo_});
+  for (const std::vector<double>* v : {&edges_, &t_, &logEnv_, &norm_}) putArray(out, *v);
+  putArray(out, dense_);
+  putArray(out, denseSum_);
+  return out;
+}
+
+std::shared_ptr<const FogLightTable> FogLightTable::fromBytes(std::string_view in, std::size_t edges, double albedo) {
+  std::shared_ptr<FogLightTable> t(new FogLightTable());
+  std::vector<double> a;
+  if (edges < 2 || !getArray(in, a, 1) || a[0] != albedo) return nullptr;
+  t->albedo_ = albedo;
+  const std::size_t bins = edges - 1, nT = static_cast<std::size_t>(kTNodes);
+  if (!getArray(in, t->edges_, edges) || !getArray(in, t->t_, nT) || !getArray(in, t->logEnv_, nT * bins) ||
+      !getArray(in, t->norm_, nT * bins * kCoefficients) || !getArray(in, t->dense_, kDenseNodes * bins * kCoefficients) ||
+      !getArray(in, t->denseSum_, kDenseNodes * kSymmetric) || !in.empty())
+    return nullptr;
+  return t;
+}
+
+namespace {
+// The shipped table is a function of the phase function alone (the embedded tables, blended
+// between their g nodes): the key is the phase and the albedo; the code hash covers the shipped
+// tables' files and their code.
+detail::TableKey shippedKey(const Phase& phase, double albedo) {
+  detail::TableKey key;
+  key.add("fog-light-table").addPhase(phase).add(albedo);
+  return key;
+}
+}  // namespace
+
+std::shared_ptr<const FogLightTable> FogLightTable::loadShipped(const Phase& phase, double albedo,
+                                                                const std::string& cacheDir) {
+  const auto ms = shippedMultipleScatteringTable(phase);
+  if (!ms || cacheDir.empty()) return nullptr;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string bytes;
+  if (!detail::loadBytes(cacheDir, "fl", shippedKey(phase, albedo), bytes)) return nullptr;
+  const std::size_t edges = ms->hasEmissionBins() ? ms->emissionEdges().size() : 2;
+  auto loaded = fromBytes(bytes, edges, albedo);
+  if (loaded)
+    std::const_pointer_cast<FogLightTable>(loaded)->buildSeconds_ =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return loaded;
+}
+
+Result<std::shared_ptr<const FogLightTable>> FogLightTable::shipped(const Phase& phase, double albedo, ThreadPool* pool,
+                                                                    const std::string& cacheDir, std::string* cacheError) {
+  const auto ms = shippedMultipleScatteringTable(phase);
+  if (!ms) return Error{"fog light: no shipped multiple-scattering table for this phase function"};
+  if (cacheDir.empty()) return get(ms, phase, albedo, pool);
+  std::string error;
+  auto table = tableCache().get(
+      TableCacheKey{ms.get(), phaseIdentity(phase), albedo},
+      [&]() -> std::shared_ptr<const FogLightTable> {
+        if (auto loaded = loadShipped(phase, albedo, cacheDir)) return loaded;
+        auto built = build(*ms, phase, albedo, pool);
+        if (!built) {
+          error = built.error().message;
+          return nullptr;
+        }
+        if (Status st = detail::storeBytes(cacheDir, "fl", shippedKey(phase, albedo), (*built)->toBytes());
+            !st && cacheError != nullptr)
+          *cacheError = st.error().message;
+        return std::move(built).value();
+      },
+      ms);
+  if (!table) return Error{error.empty() ? "fog light: table build failed" : error};
+  return table;
+}
+
 Result<std::shared_ptr<const FogLightTable>> FogLightTable::get(const std::shared_ptr<const MultipleScatteringTable>& ms,
                                                                 const Phase& phase, double albedo, ThreadPool* pool) {
   if (!ms) return Error{"fog light: no multiple-scattering table"};
-  using Key = std::tuple<const void*, PhaseIdentity, double>;
-  static SharedCache<Key, FogLightTable> cache(4);
   std::string error;
-  auto table = cache.get(
-      Key{ms.get(), phaseIdentity(phase), albedo},
+  auto table = tableCache().get(
+      TableCacheKey{ms.get(), phaseIdentity(phase), albedo},
       [&]() -> std::shared_ptr<const FogLightTable> {
         auto built = build(*ms, phase, albedo, pool);
         if (!built) {

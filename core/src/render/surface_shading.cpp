@@ -115,9 +115,8 @@ void SurfaceShader::prepareFogLight(const Scene& scene, FogLightFrame& f, Thread
   f.lamps.clear();
   const GlowOptions& glow = scene.effects.glow;
   if (!glow.enabled || !glow.surfaces || !(scene.fog.albedo > 0.0) || !(scene.fog.extinction_per_m > 0.0)) return;
-  const auto ms = shippedMultipleScatteringTable(scene.fog.phase);
-  if (!ms) return;  // no table for this phase function: no fog light (docs/airlight.md)
-  auto table = FogLightTable::get(ms, scene.fog.phase, scene.fog.albedo, pool);
+  // No shipped multiple-scattering table for this phase function: no fog light (docs/airlight.md).
+  auto table = FogLightTable::shipped(scene.fog.phase, scene.fog.albedo, pool, cacheDir_, &cacheError_);
   if (!table) return;
   fogTable_ = std::move(table).value();
   f.table = fogTable_.get();

@@ -84,8 +84,9 @@ class Reader {
   std::size_t n_, at_ = 0;
 };
 
-// Annulus maps (storeFloats with kind "am"): the same layout with a float array as the body.
-constexpr char kFloatsMagic[8] = {'F', 'B', 'F', 'L', 'C', 'A', 'C', '1'};
+// Blobs (storeBytes: the fog light's annulus maps "am" and tables "fl"): the same layout with
+// bytes as the body.
+constexpr char kBlobMagic[8] = {'F', 'B', 'F', 'L', 'C', 'A', 'C', '1'};
 
 // "<kind>-<hash>.bin": view tables are "vt", the fog light's annulus maps "am" (evictOldest
 // counts both).
@@ -291,24 +292,38 @@ Status storeLampTables(const std::filesystem::path& dir, const TableKey& key, co
   return writeInPlace(dir, fileFor(dir, key), w);
 }
 
-bool loadFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::vector<float>& out) {
+bool loadBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::string& out) {
   std::string file;
   std::size_t body = 0;
   if (!readVerified(fileFor(dir, key, kind), file, body)) return false;
   Reader r(file.data(), body);
-  if (!readHeader(r, kFloatsMagic, key)) return false;
-  std::vector<float> v;  // a damaged file leaves `out` as it was
-  if (!r.array(v, std::size_t{1} << 31) || r.at() != body) return false;
-  out = std::move(v);
+  if (!readHeader(r, kBlobMagic, key)) return false;
+  std::vector<char> v;  // a damaged file leaves `out` as it was
+  if (!r.array(v, std::size_t{1} << 33) || r.at() != body) return false;
+  out.assign(v.begin(), v.end());
+  return true;
+}
+
+Status storeBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::string_view data) {
+  Writer w;
+  writeHeader(w, kBlobMagic, key);
+  w.put(static_cast<std::uint64_t>(data.size()));
+  w.bytes(data.data(), data.size());
+  return writeInPlace(dir, fileFor(dir, key, kind), w);
+}
+
+bool loadFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::vector<float>& out) {
+  std::string bytes;
+  if (!loadBytes(dir, kind, key, bytes) || bytes.size() % sizeof(float) != 0) return false;
+  out.resize(bytes.size() / sizeof(float));
+  std::memcpy(out.data(), bytes.data(), bytes.size());
   return true;
 }
 
 Status storeFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,
                    const std::vector<float>& data) {
-  Writer w;
-  writeHeader(w, kFloatsMagic, key);
-  w.array(data);
-  return writeInPlace(dir, fileFor(dir, key, kind), w);
+  return storeBytes(dir, kind, key,
+                    std::string_view(reinterpret_cast<const char*>(data.data()), data.size() * sizeof(float)));
 }
 
 void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& keep, std::uintmax_t maxBytes) {
@@ -324,7 +339,8 @@ void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& 
   std::error_code ec;
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if ((name.rfind("vt-", 0) != 0 && name.rfind("am-", 0) != 0) || it->path().extension() != ".bin") continue;
+    const bool ours = name.rfind("vt-", 0) == 0 || name.rfind("am-", 0) == 0 || name.rfind("fl-", 0) == 0;
+    if (!ours || it->path().extension() != ".bin") continue;
     std::error_code e1, e2;
     const auto bytes = it->file_size(e1);
     const auto time = it->last_write_time(e2);

@@ -70,8 +70,9 @@ struct LampTables {
 /// the default 0.2° stores ~65 MB per distinct fog and pose, the service's 320×180 cab ~4 MB.
 inline constexpr std::uintmax_t kTableCacheMaxBytes = std::uintmax_t{1} << 30;
 
-/// Removes the oldest cache files (by modification time; view tables "vt-*.bin" and annulus maps
-/// "am-*.bin") of `dir` until the rest fit `maxBytes`, never `keep` (the file just written).
+/// Removes the oldest cache files (by modification time; view tables "vt-*.bin", the fog light's
+/// annulus maps "am-*.bin" and tables "fl-*.bin") of `dir` until the rest fit `maxBytes`, never
+/// `keep` (the file just written).
 void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& keep,
                  std::uintmax_t maxBytes = kTableCacheMaxBytes);
 
@@ -80,10 +81,15 @@ void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& 
 [[nodiscard]] Status storeLampTables(const std::filesystem::path& dir, const TableKey& key, const LampTables& in);
 
 /// A float array stored under `key` as a file of its own kind (`kind`: the file name's prefix,
-/// "am" for the fog light's annulus maps, fog_light.hpp), with the view tables' checks: the code
-/// version and the whole key compared, a checksum, written under a temporary name and renamed;
-/// the directory trimmed as evictOldest says (which counts "vt" and "am" files). loadFloats:
-/// false on any miss, `out` then untouched. storeFloats: errors name the file and the call.
+/// "am" for the fog light's annulus maps, "fl" for its tables, fog_light.hpp), with the view
+/// tables' checks: the code version and the whole key compared, a checksum, written under a
+/// temporary name and renamed; the directory trimmed as evictOldest says (which counts "vt",
+/// "am" and "fl" files). loadFloats: false on any miss, `out` then untouched. storeFloats:
+/// errors name the file and the call. loadBytes / storeBytes: the same for bytes.
+[[nodiscard]] bool loadBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,
+                             std::string& out);
+[[nodiscard]] Status storeBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,
+                                std::string_view data);
 [[nodiscard]] bool loadFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,
                               std::vector<float>& out);
 [[nodiscard]] Status storeFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,

@@ -28,7 +28,7 @@ struct GlOptions {
   unsigned shading_threads = 0;  ///< threads lighting the geometry buffer (Cpu shading); 0: every core
   int device_index = 0;     ///< Device only: index into eglQueryDevicesEXT's list
   bool debug_context = false;  ///< request a debug context and log GL debug messages to stderr
-  /// Where the fog light's annulus maps are kept between runs (SurfaceShader::setTableCacheDir;
+  /// Where the fog light's table and annulus maps are kept between runs (SurfaceShader::setTableCacheDir;
   /// the view tables' cache directory, tableCacheDirFor); empty: built in every run.
   std::string table_cache_dir;
 };

@@ -97,8 +97,9 @@ class GlSurfacePass {
   [[nodiscard]] const GlSurfaceStats& stats() const noexcept;
   /// Where this pass lights its pixels: Gpu or Cpu (GlOptions::shading, Auto resolved at create()).
   [[nodiscard]] SurfaceShading shading() const noexcept;
-  /// The last failure to store a fog-light annulus map in GlOptions::table_cache_dir (empty:
-  /// none since the last call); the next run builds that map again, nothing else is lost.
+  /// The last failure to store the fog light's table or an annulus map in
+  /// GlOptions::table_cache_dir (empty: none since the last call); the next run builds it again,
+  /// nothing else is lost.
   [[nodiscard]] std::string takeTableCacheError();
 
   struct Impl;

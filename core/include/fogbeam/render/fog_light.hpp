@@ -62,6 +62,8 @@
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <string>
+#include <string_view>
 #include <vector>
 
 namespace fogbeam {
@@ -95,6 +97,19 @@ class FogLightTable {
   [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> get(
       const std::shared_ptr<const MultipleScatteringTable>& ms, const Phase& phase, double albedo,
       ThreadPool* pool = nullptr);
+  /// get() for the shipped multiple-scattering table of `phase` (shippedMultipleScatteringTable;
+  /// an error where there is none), and with `cacheDir` (the view tables' table cache) kept on
+  /// disk too ("fl-<hash>.bin": the phase function and albedo, the code version, which covers the
+  /// shipped tables' files; a checksum): a later run loads it in a few ms instead of building it
+  /// (~0.15–0.2 s on 2 cores). A store that fails leaves its message in `cacheError` (not null).
+  [[nodiscard]] static Result<std::shared_ptr<const FogLightTable>> shipped(const Phase& phase, double albedo,
+                                                                            ThreadPool* pool = nullptr,
+                                                                            const std::string& cacheDir = {},
+                                                                            std::string* cacheError = nullptr);
+  /// shipped()'s table from `cacheDir` alone: null where no run of this code stored it there
+  /// for this phase function and albedo, or the file is damaged (never a wrong table).
+  [[nodiscard]] static std::shared_ptr<const FogLightTable> loadShipped(const Phase& phase, double albedo,
+                                                                        const std::string& cacheDir);
 
   [[nodiscard]] std::size_t bins() const noexcept { return edges_.size() - 1; }
   /// Emission bin edges η_k, radians, 0 … π.
@@ -119,6 +134,7 @@ class FogLightTable {
                                   const double* dipoleDotN = nullptr) const noexcept;
 
   [[nodiscard]] const std::vector<double>& opticalDistances() const noexcept { return t_; }
+  /// Seconds the table took to build, or to load from the table cache (shipped()).
   [[nodiscard]] double buildSeconds() const noexcept { return buildSeconds_; }
 
   /// The dense table the frames read, for the shaders (shaders/common_photometry.glsl mirrors
@@ -136,6 +152,11 @@ class FogLightTable {
                                                                           const Phase& phase, double albedo,
                                                                           ThreadPool* pool);
   void smoothCoefficients(double opticalDistance, double* c) const noexcept;  // from the build nodes
+  // Every array, for the table cache (shipped()); fromBytes: null unless the sizes are the
+  // table's for `edges` bin edges and the albedo is `albedo`.
+  [[nodiscard]] std::string toBytes() const;
+  [[nodiscard]] static std::shared_ptr<const FogLightTable> fromBytes(std::string_view bytes, std::size_t edges,
+                                                                      double albedo);
   /// The dense row below T, the weight of the next and the 1/T factor below the first node;
   /// false beyond the table (T ≤ 0 or T > 32: no light).
   bool denseRow(double opticalDistance, std::size_t& row, double& weight, double& below) const noexcept;

@@ -149,14 +149,15 @@ class SurfaceShader {
  public:
   /// This frame's camera, fog and lamps, in float (tabulated profiles are converted once and
   /// kept while the shader lives, keyed by identity). With the fog light on ([glow] enabled and
-  /// `surfaces`), its table (once per phase function and albedo, ~0.1–0.2 s) and each
-  /// profile's annulus map (once per profile, ~0.9–1.0 s on 2 cores, or loaded from the table
-  /// cache: setTableCacheDir) are made on first use, on `pool` when given.
+  /// `surfaces`), its table (once per phase function and albedo, ~0.2 s) and each profile's
+  /// annulus map (once per profile, ~0.9–1.0 s on 2 cores) are made on first use, on `pool`
+  /// when given, or loaded from the table cache (setTableCacheDir).
   void prepare(const Scene& scene, kernels::ShadeFrame& frame, ThreadPool* pool = nullptr);
-  /// Where the annulus maps are kept between runs (AnnulusMeanMap::build's cacheDir; empty, the
-  /// default: built in every run). Not to be called while prepare() runs.
+  /// Where the fog light's table and annulus maps are kept between runs (FogLightTable::shipped's
+  /// and AnnulusMeanMap::build's cacheDir; empty, the default: built in every run). Not to be
+  /// called while prepare() runs.
   void setTableCacheDir(std::string dir) { cacheDir_ = std::move(dir); }
-  /// The last failure to store a map there (empty: none since the last call).
+  /// The last failure to store a table or map there (empty: none since the last call).
   [[nodiscard]] std::string takeTableCacheError() { return std::exchange(cacheError_, {}); }
   /// The fog light's part of prepare() alone (GPU shading, where the shaders read the table and
   /// maps): `fog` emptied when it is off or the fog's phase function has no multiple-scattering
