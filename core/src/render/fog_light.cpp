@@ -337,15 +337,17 @@ std::string FogLightTable::toBytes() const {
   return out;
 }
 
-std::shared_ptr<const FogLightTable> FogLightTable::fromBytes(std::string_view in, std::size_t edges, double albedo) {
+std::shared_ptr<const FogLightTable> FogLightTable::fromBytes(std::string_view in, const std::vector<double>& wantEdges,
+                                                              double albedo) {
   std::shared_ptr<FogLightTable> t(new FogLightTable());
   std::vector<double> a;
+  const std::size_t edges = wantEdges.size();
   if (edges < 2 || !getArray(in, a, 1) || a[0] != albedo) return nullptr;
   t->albedo_ = albedo;
   const std::size_t bins = edges - 1, nT = static_cast<std::size_t>(kTNodes);
   if (!getArray(in, t->edges_, edges) || !getArray(in, t->t_, nT) || !getArray(in, t->logEnv_, nT * bins) ||
       !getArray(in, t->norm_, nT * bins * kCoefficients) || !getArray(in, t->dense_, kDenseNodes * bins * kCoefficients) ||
-      !getArray(in, t->denseSum_, kDenseNodes * kSymmetric) || !in.empty())
+      !getArray(in, t->denseSum_, kDenseNodes * kSymmetric) || !in.empty() || t->edges_ != wantEdges)
     return nullptr;
   return t;
 }
@@ -368,8 +370,7 @@ std::shared_ptr<const FogLightTable> FogLightTable::loadShipped(const Phase& pha
   const auto t0 = std::chrono::steady_clock::now();
   std::string bytes;
   if (!detail::loadBytes(cacheDir, "fl", shippedKey(phase, albedo), bytes)) return nullptr;
-  const std::size_t edges = ms->hasEmissionBins() ? ms->emissionEdges().size() : 2;
-  auto loaded = fromBytes(bytes, edges, albedo);
+  auto loaded = fromBytes(bytes, ms->hasEmissionBins() ? ms->emissionEdges() : std::vector<double>{0.0, kPi}, albedo);
   if (loaded)
     std::const_pointer_cast<FogLightTable>(loaded)->buildSeconds_ =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -153,10 +153,10 @@ class FogLightTable {
                                                                           ThreadPool* pool);
   void smoothCoefficients(double opticalDistance, double* c) const noexcept;  // from the build nodes
   // Every array, for the table cache (shipped()); fromBytes: null unless the sizes are the
-  // table's for `edges` bin edges and the albedo is `albedo`.
+  // table's for `edges` and the stored edges and albedo are `edges` and `albedo`.
   [[nodiscard]] std::string toBytes() const;
-  [[nodiscard]] static std::shared_ptr<const FogLightTable> fromBytes(std::string_view bytes, std::size_t edges,
-                                                                      double albedo);
+  [[nodiscard]] static std::shared_ptr<const FogLightTable> fromBytes(std::string_view bytes,
+                                                                      const std::vector<double>& edges, double albedo);
   /// The dense row below T, the weight of the next and the 1/T factor below the first node;
   /// false beyond the table (T ≤ 0 or T > 32: no light).
   bool denseRow(double opticalDistance, std::size_t& row, double& weight, double& below) const noexcept;
