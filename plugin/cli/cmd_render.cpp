@@ -117,7 +117,7 @@ int runRender(const RenderOptions& o) {
   std::string surfaceName = "CPU, planes only";
   double surfaceMs = 0.0;
   std::unique_ptr<GlSurfacePass> gl;
-  // The view tables' cache directory also keeps the fog light's annulus maps.
+  // The view tables' cache directory also keeps the fog light's table and annulus maps.
   const std::string tableCache = tableCacheDirFor(o.tableCache);
   if (o.surface != "cpu") {
     GlOptions glOptions;
@@ -142,6 +142,7 @@ int runRender(const RenderOptions& o) {
       return 2;
     }
   }
+  std::string cacheError;  // a fog-light table or map the surface pass could not store
   auto t0 = Clock::now();
   if (gl) {
     const Status s = gpuAirlight ? gl->render(*scene, surface, airlight.rgb) : gl->render(*scene, surface);
@@ -159,12 +160,12 @@ int runRender(const RenderOptions& o) {
     kernels::ShadeFrame frame;
     ThreadPool pool(o.threads);
     shader.render(*scene, frame, surface, &pool);
-    if (const std::string e = shader.takeTableCacheError(); !e.empty())
-      std::fprintf(stderr, "fogbeam render: fog-light table or map not cached: %s\n", e.c_str());
+    cacheError = shader.takeTableCacheError();
   }
-  if (gl)
-    if (const std::string e = gl->takeTableCacheError(); !e.empty())
-      std::fprintf(stderr, "fogbeam render: fog-light table or map not cached: %s\n", e.c_str());
+  if (gl) cacheError = gl->takeTableCacheError();
+  // Not fatal: the image is the same, the next run builds the table or map again.
+  if (!cacheError.empty())
+    std::fprintf(stderr, "fogbeam render: fog-light table or map not cached: %s\n", cacheError.c_str());
   surfaceMs = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 
   const std::size_t pixels = static_cast<std::size_t>(surface.width) * static_cast<std::size_t>(surface.height);

@@ -3,6 +3,8 @@
 #include <fogbeam/plugin/frame_pipeline.hpp>
 #include <fogbeam/render/airlight_image.hpp>
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <chrono>
 #include <utility>
@@ -13,7 +15,7 @@ Result<SurfacePass> openSurfacePass(const ServiceConfig& config) {
   SurfacePass pass;
   if (config.surface == "cpu") return pass;
   GlOptions options;
-  options.table_cache_dir = tableCacheDirFor(config.table_cache);  // the fog light's annulus maps
+  options.table_cache_dir = tableCacheDirFor(config.table_cache);  // the fog light's table and annulus maps
   auto g = GlSurfacePass::create(options);
   if (g) {
     pass.gl = std::move(g).value();
@@ -49,6 +51,32 @@ ipc::Clock::time_point newestInput(const ipc::SimSnapshot& state) {
   return newest;
 }
 
+/// The fog light's maps for every lamp the configuration can show, made on a thread of their
+/// own while the channels start (FogLightPrewarm): the ego's lamps first (the first frame shows
+/// them), then the world's, then each traffic class's, so that the first car of a lamp file
+/// never seen before (no map in the table cache) does not hold its frame for the map's ~1 s.
+/// Null when the fog light is off ([glow] enabled and surfaces) or the fog scatters nothing.
+std::unique_ptr<FogLightPrewarm> startFogLightPrewarm(const ServiceConfig& config, const Scene& world) {
+  const GlowOptions& glow = config.effects.glow;
+  if (!glow.enabled || !glow.surfaces || !(config.fog.albedo > 0.0)) return nullptr;
+  std::vector<FogLightPrewarm::Lamp> lamps;
+  for (const RigLamp& r : config.ego.lamps) lamps.push_back({r.lamp.lamp.profile, true});
+  for (const SceneLamp& l : world.lamps)
+    if (l.mount == LampMount::World) lamps.push_back({l.lamp.profile, false});
+  for (const auto& [cls, rig] : config.traffic)
+    for (const RigLamp& r : rig.lamps) lamps.push_back({r.lamp.lamp.profile, false});
+  return std::make_unique<FogLightPrewarm>(
+      std::move(lamps), config.fog.phase, config.fog.albedo, config.threads, tableCacheDirFor(config.table_cache),
+      [](const FogLightPrewarm::Summary& s) {
+        spdlog::info("fog light: {} annulus map(s) ready in {:.2f} s ahead of the frames ({} from the table cache)",
+                     s.maps.size(), s.seconds, s.loaded);
+        if (!s.error.empty())
+          spdlog::warn("fog light, maps made ahead: {} (a map not made is made by the frame that needs it; one "
+                       "not stored, by the next start)",
+                       s.error);
+      });
+}
+
 }  // namespace
 
 Result<std::unique_ptr<FramePipeline>> FramePipeline::create(ServiceConfig config, const Scene& world,
@@ -59,6 +87,7 @@ Result<std::unique_ptr<FramePipeline>> FramePipeline::create(ServiceConfig confi
   p->config_ = std::move(config);
   p->gl_ = std::move(gl);
   p->awaitTables_ = awaitTables;
+  p->fogPrewarm_ = startFogLightPrewarm(p->config_, world);
   for (std::size_t c = 0; c < p->config_.channels.size(); ++c) {
     auto r = ChannelRenderer::create(p->config_, c, world, p->gl_.get());
     if (!r) return r.error();

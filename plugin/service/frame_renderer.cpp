@@ -30,6 +30,15 @@ using Clock = std::chrono::steady_clock;
 
 double ms(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double, std::milli>(b - a).count(); }
 
+/// The gate of a rate-limited log line: true at most once every `seconds` per gate, whichever
+/// thread asks (a compare-exchange, so two threads never both log in the same window). A gate
+/// is a function-local static: one per kind of message, shared by every channel.
+bool gateOpens(std::atomic<std::int64_t>& gate, std::int64_t seconds) {
+  const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
+  std::int64_t last = gate.load();
+  return now - last >= seconds && gate.compare_exchange_strong(last, now);
+}
+
 Mat3 rotation(const ipc::Pose& p) {
   return worldFromYawPitchRoll(radians(static_cast<double>(p.yaw_deg)), radians(static_cast<double>(p.pitch_deg)),
                                radians(static_cast<double>(p.roll_deg)));
@@ -375,9 +384,7 @@ struct ChannelRenderer::Impl {
       // The next start builds these tables again; nothing else is lost. At most every 10 s: a
       // fog ramp builds tables one after the other.
       static std::atomic<std::int64_t> lastLog{0};
-      const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
-      std::int64_t last = lastLog.load();
-      if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
+      if (gateOpens(lastLog, 10))
         spdlog::warn("render: view tables not cached ({}): the next start builds them again", scratch.table_cache_error);
     }
     return e;
@@ -409,7 +416,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->method = *m;
   impl->fast.view_table_step_deg = config.view_table_step_deg;
   impl->fast.table_cache_dir = tableCacheDirFor(config.table_cache);
-  impl->cpuSurfaces.setTableCacheDir(impl->fast.table_cache_dir);  // the fog light's annulus maps
+  impl->cpuSurfaces.setTableCacheDir(impl->fast.table_cache_dir);  // the fog light's table and annulus maps
   impl->fast.moving_lamps = parseMovingLampPath(config.moving_lamps).value_or(MovingLampPath::Pencil);
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
@@ -746,15 +753,13 @@ Status ChannelRenderer::Impl::renderSurfaces(Begun& b, bool overlapped) {
     if (overlapped && !surfacePool) surfacePool = std::make_unique<ThreadPool>(config->threads);
     cpuSurfaces.render(b.lit, cpuShadeFrame, b.surface, overlapped ? surfacePool.get() : framePool.get());
   }
-  // A fog-light annulus map that could not be stored in the table cache: the next start builds
-  // it again, nothing else is lost. Logged at most every 10 s.
+  // A fog-light table or annulus map that could not be stored in the table cache: the next
+  // start builds it again, nothing else is lost. Logged at most every 10 s.
   std::string cacheError = cpuSurfaces.takeTableCacheError();
   if (gl && cacheError.empty()) cacheError = gl->takeTableCacheError();
   if (!cacheError.empty()) {
     static std::atomic<std::int64_t> lastLog{0};
-    const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
-    std::int64_t last = lastLog.load();
-    if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
+    if (gateOpens(lastLog, 10))
       spdlog::warn("render: fog-light table or map not cached ({}): the next start builds it again", cacheError);
   }
   return Ok{};
@@ -780,9 +785,7 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
     perPixel = true;
     ++ladderMisses;
     static std::atomic<std::int64_t> lastLog{0};
-    const std::int64_t now = std::chrono::duration_cast<std::chrono::seconds>(Clock::now().time_since_epoch()).count();
-    std::int64_t last = lastLog.load();
-    if (now - last >= 10 && lastLog.compare_exchange_strong(last, now))
+    if (gateOpens(lastLog, 10))
       spdlog::warn("render: the fog ladder's rungs did not fit {} frame(s); those went per pixel", ladderMisses);
   }
   out.fog_rungs = 0;

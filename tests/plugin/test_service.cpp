@@ -515,5 +515,45 @@ TEST(Service, ReplaysStepGivesServesPixelsForTheSameStates) {
   EXPECT_EQ(served[0].meta.traffic_count, 1u);
 }
 
+// [glow] on: the pipeline makes the fog light's maps of the ego's and the traffic's lamps ahead
+// of the frames (FogLightPrewarm), so the first frame with an oncoming car makes none (a map is
+// ~1 s the first time a lamp file is ever seen). Table cache off: every map is made, none loaded.
+TEST(Service, TheFogLightsMapsAreMadeBeforeTheFramesThatShowTheLamps) {
+  auto scenario = loadScenario(kScenario);
+  ASSERT_TRUE(scenario) << scenario.error().message;
+  const ServiceConfig cfg =
+      configOf(kSmall, {"timing.mode=\"lock-step\"", "glow.enabled=true", "render.table_cache=\"off\""});
+  auto world = loadScene(cfg.scene_path);
+  ASSERT_TRUE(world) << world.error().message;
+  auto pipeline = FramePipeline::create(cfg, *world, nullptr, true);
+  ASSERT_TRUE(pipeline) << pipeline.error().message;
+  const FogLightPrewarm* prewarm = (*pipeline)->fogLightPrewarm();
+  ASSERT_NE(prewarm, nullptr);
+  // The ego's low beam (front only) and the car's low beam (all round): one file, two maps; the
+  // ego's high beam a third.
+  EXPECT_GE(prewarm->summary().maps.size(), 3u);
+  EXPECT_EQ(prewarm->summary().loaded, 0u);
+  const std::size_t made = AnnulusMeanMap::buildsSoFar();
+
+  ipc::StateStore store;
+  std::uint32_t sequence = 1;
+  CaptureSink sink;
+  for (double t : {0.0, 2.5, 4.5}) {  // the car in view; the ego's high beam on, then off
+    const auto now = Clock::now();
+    applyState(evaluate(*scenario, t), store, sequence, now);
+    FrameBookkeeping book;
+    book.frame = sink.pixels.size() + 1;
+    ASSERT_TRUE((*pipeline)->step(*store.snapshot(), now, book, sink));
+  }
+  ASSERT_EQ(sink.metas.size(), 3u);
+  EXPECT_EQ(sink.metas[0].traffic_count, 1u);
+  EXPECT_EQ(AnnulusMeanMap::buildsSoFar(), made);
+
+  // Glow off: no prewarm at all.
+  auto off = FramePipeline::create(configOf(kSmall, {"timing.mode=\"lock-step\""}), *world, nullptr, true);
+  ASSERT_TRUE(off) << off.error().message;
+  EXPECT_EQ((*off)->fogLightPrewarm(), nullptr);
+}
+
 }  // namespace
 }  // namespace fogbeam::plugin

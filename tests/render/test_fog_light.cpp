@@ -411,5 +411,72 @@ TEST(FogLight, TheSurfaceLayerInterpolatesItsCoarseNodes) {
   EXPECT_LT(worst, 0.05);
 }
 
+// A service makes its lamps' maps ahead of the frames (FogLightPrewarm): the frames then use
+// those very maps and make none, a frame asking for one while it is being made waits for it
+// (no map is ever made twice), and a prewarm destroyed early stops after the map in progress.
+TEST(FogLight, MapsMadeAheadAreTheOnesTheFramesUseAndNoneIsMadeTwice) {
+  const Medium fog = hgFog(0.03);
+  const std::string file = std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies";
+  const auto beam = loadProfileFile(file).value();
+  const auto iso = makeProfile(IsotropicProfile{1000.0}).value();
+  const auto table = FogLightTable::shipped(fog.phase, fog.albedo);
+  ASSERT_TRUE(table) << table.error().message;
+  const std::vector<double>& edges = (*table)->edges();
+
+  const std::size_t before = AnnulusMeanMap::buildsSoFar();
+  int called = 0;
+  FogLightPrewarm prewarm({{beam, true}, {beam, false}, {beam, true}, {iso, false}}, fog.phase, fog.albedo, 2, {},
+                          [&](const FogLightPrewarm::Summary& s) {
+                            ++called;
+                            EXPECT_EQ(s.maps.size(), 2u);
+                          });
+  // Meanwhile a frame asks for the first map: whoever gets there first makes it, the other
+  // waits and takes it.
+  ThreadPool pool(2);
+  const auto asked = AnnulusMeanMap::shared(beam, edges, true, &pool);
+  const FogLightPrewarm::Summary& made = prewarm.summary();
+  EXPECT_TRUE(prewarm.ready());
+  EXPECT_EQ(called, 1);
+  ASSERT_EQ(made.maps.size(), 2u);  // the duplicate and the isotropic lamp need none of their own
+  EXPECT_EQ(made.loaded, 0u);       // no table cache
+  EXPECT_EQ(made.maps[0], asked);
+  EXPECT_EQ(AnnulusMeanMap::buildsSoFar() - before, 2u);
+
+  // A frame with the driver's low beam (front only) and the same file on a street post: the
+  // shader takes the maps made ahead and makes none.
+  Scene scene;
+  scene.fog = fog;
+  scene.effects.glow.enabled = true;
+  scene.effects.glow.surfaces = true;
+  scene.camera.width = 64;
+  scene.camera.height = 36;
+  for (LampMount mount : {LampMount::Vehicle, LampMount::World}) {
+    SceneLamp l;
+    l.lamp.profile = beam;
+    l.lamp.position_m = Vec3(mount == LampMount::Vehicle ? 1.0 : 30.0, 0.0, 0.7);
+    l.lamp.worldFromLamp = worldFromAxis(Vec3(1.0, 0.0, 0.0));
+    l.mount = mount;
+    scene.lamps.push_back(l);
+  }
+  SurfaceShader shader;
+  FogLightFrame frame;
+  shader.prepareFogLight(scene, frame, &pool);
+  ASSERT_EQ(frame.lamps.size(), 2u);
+  EXPECT_EQ(frame.lamps[0].map, made.maps[0].get());
+  EXPECT_EQ(frame.lamps[1].map, made.maps[1].get());
+  EXPECT_EQ(AnnulusMeanMap::buildsSoFar() - before, 2u);
+
+  // Three lamp files never seen (other objects: other keys), the prewarm destroyed at once:
+  // at most the map in progress is made.
+  const std::size_t early = AnnulusMeanMap::buildsSoFar();
+  {
+    FogLightPrewarm gone({{loadProfileFile(file).value(), false},
+                          {loadProfileFile(file).value(), false},
+                          {loadProfileFile(file).value(), false}},
+                         fog.phase, fog.albedo, 2, {});
+  }
+  EXPECT_LE(AnnulusMeanMap::buildsSoFar() - early, 1u);
+}
+
 }  // namespace
 }  // namespace fogbeam

@@ -156,12 +156,14 @@ TEST(ViewTableCache, TheOldestFilesGoWhenTheDirectoryIsFull) {
   TempDir dir;
   fs::create_directories(dir.path);
   std::vector<fs::path> files;
+  const char* kinds[] = {"vt", "am", "fl", "vt", "am"};  // all three kinds count
   for (int i = 0; i < 5; ++i) {
-    files.push_back(dir.path / ("vt-" + std::to_string(i) + ".bin"));
+    files.push_back(dir.path / (std::string(kinds[i]) + "-" + std::to_string(i) + ".bin"));
     std::ofstream(files.back()) << std::string(1000, 'x');
     fs::last_write_time(files.back(), fs::file_time_type::clock::now() - std::chrono::hours(5 - i));
   }
   std::ofstream(dir.path / "unrelated.txt") << std::string(5000, 'y');  // not a cache file: kept
+  std::ofstream(dir.path / "xx-9.bin") << std::string(5000, 'z');      // another prefix: kept
   detail::evictOldest(dir.path, files[0], 2500);
   EXPECT_TRUE(fs::exists(files[0]));   // the one just written, however old
   EXPECT_FALSE(fs::exists(files[1]));  // the oldest others
@@ -169,6 +171,24 @@ TEST(ViewTableCache, TheOldestFilesGoWhenTheDirectoryIsFull) {
   EXPECT_FALSE(fs::exists(files[3]));
   EXPECT_TRUE(fs::exists(files[4]));
   EXPECT_TRUE(fs::exists(dir.path / "unrelated.txt"));
+  EXPECT_TRUE(fs::exists(dir.path / "xx-9.bin"));
+}
+
+TEST(ViewTableCache, AStoreOfAKindEvictionWouldNotCountIsRefused) {
+  TempDir dir;
+  detail::TableKey key;
+  key.add(1.0);
+  const Status st = detail::storeBytes(dir.path, "xx", key, "payload");
+  ASSERT_FALSE(st);
+  EXPECT_NE(st.error().message.find("'xx'"), std::string::npos) << st.error().message;
+  EXPECT_FALSE(fs::exists(dir.path));  // nothing written
+  ASSERT_TRUE(detail::storeBytes(dir.path, "fl", key, "payload"));
+  std::string back;
+  ASSERT_TRUE(detail::loadBytes(dir.path, "fl", key, back));
+  EXPECT_EQ(back, "payload");
+  std::vector<float> floats{1.0f};
+  EXPECT_FALSE(detail::loadFloats(dir.path, "fl", key, floats));  // 7 bytes: not floats
+  EXPECT_EQ(floats, std::vector<float>{1.0f});                     // untouched
 }
 
 // The files of one kind ("vt", "am") in `dir`.

@@ -13,7 +13,11 @@
 #include <boost/math/quadrature/gauss.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -524,6 +528,29 @@ double FogLightTable::irradiance(double opticalDistance, double mu, const double
   return std::max(0.0, e);
 }
 
+namespace {
+std::atomic<std::size_t> gMapBuilds{0};  // AnnulusMeanMap::buildsSoFar
+
+// AnnulusMeanMap::shared's key: the profile by identity (SharedCache's owner ties the entry to
+// it), frontOnly and the bin edges.
+using MapKey = std::tuple<const Profile*, bool, std::vector<double>>;
+SharedCache<MapKey, AnnulusMeanMap>& mapCache() {
+  static SharedCache<MapKey, AnnulusMeanMap> cache(16);
+  return cache;
+}
+}  // namespace
+
+std::size_t AnnulusMeanMap::buildsSoFar() noexcept { return gMapBuilds.load(); }
+
+std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::shared(const std::shared_ptr<const Profile>& profile,
+                                                             const std::vector<double>& edges, bool frontOnly,
+                                                             ThreadPool* pool, const std::string& cacheDir,
+                                                             std::string* cacheError) {
+  return mapCache().get(
+      MapKey{profile.get(), frontOnly, edges},
+      [&] { return build(profile, edges, frontOnly, pool, cacheDir, cacheError); }, profile);
+}
+
 std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const std::shared_ptr<const Profile>& profile,
                                                             const std::vector<double>& edges,
                                                             bool frontOnly, ThreadPool* pool,
@@ -548,6 +575,7 @@ std::shared_ptr<const AnnulusMeanMap> AnnulusMeanMap::build(const std::shared_pt
     }
   }
   m->v_.assign(size, 0.0f);
+  gMapBuilds.fetch_add(1);
   // The nodes' annuli as the glow's (cellAnnulusMeans): annuli ≥ 10° wide summed over the
   // profile's ~1.5° sphere cells, narrower ones sampled with azimuths ≤ 1.5° apart. Sampled at
   // 24 azimuths, as until 2026-11-28, a bin's mean was off by up to 38 % (high beam), 61 % (front
@@ -666,6 +694,72 @@ double fogLightCoefficients(const FogLightFrame& frame, const Vec3& x, float* ou
     if (r > 0.0 && frame.extinction * r <= limit) near = std::min(near, r);
   }
   return near;
+}
+
+struct FogLightPrewarm::State {
+  mutable std::mutex mutex;
+  mutable std::condition_variable doneCv;
+  bool done = false;
+  std::atomic<bool> stop{false};  // the destructor: no map after the one in progress
+  Summary summary;
+  std::thread thread;
+};
+
+FogLightPrewarm::FogLightPrewarm(std::vector<Lamp> lamps, const Phase& phase, double albedo, unsigned threads,
+                                 std::string cacheDir, std::function<void(const Summary&)> done)
+    : state_(std::make_unique<State>()) {
+  state_->thread = std::thread([st = state_.get(), lamps = std::move(lamps), phase, albedo, threads,
+                                cacheDir = std::move(cacheDir), done = std::move(done)] {
+    const auto start = std::chrono::steady_clock::now();
+    Summary out;
+    // Anything thrown here (memory) ends the prewarm, not the process: the frames then make
+    // what is missing themselves, as without one.
+    try {
+      ThreadPool pool(threads);
+      auto table = FogLightTable::shipped(phase, albedo, &pool, cacheDir, &out.error);
+      if (table) {
+        const std::vector<double>& edges = (*table)->edges();
+        std::vector<std::pair<const Profile*, bool>> seen;
+        for (const Lamp& l : lamps) {
+          if (st->stop.load()) break;
+          if (!l.profile || std::holds_alternative<IsotropicProfile>(l.profile->model())) continue;
+          const std::pair<const Profile*, bool> key{l.profile.get(), l.frontOnly};
+          if (std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
+          seen.push_back(key);
+          out.maps.push_back(AnnulusMeanMap::shared(l.profile, edges, l.frontOnly, &pool, cacheDir, &out.error));
+          if (out.maps.back()->fromCache()) ++out.loaded;
+        }
+      }
+    } catch (const std::exception& e) {
+      out.error = std::string("the prewarm stopped: ") + e.what();
+    }
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (done) done(out);
+    std::lock_guard lock(st->mutex);
+    st->summary = std::move(out);
+    st->done = true;
+    st->doneCv.notify_all();
+  });
+}
+
+FogLightPrewarm::~FogLightPrewarm() {
+  state_->stop.store(true);
+  if (state_->thread.joinable()) state_->thread.join();
+}
+
+bool FogLightPrewarm::ready() const {
+  std::lock_guard lock(state_->mutex);
+  return state_->done;
+}
+
+void FogLightPrewarm::wait() const {
+  std::unique_lock lock(state_->mutex);
+  state_->doneCv.wait(lock, [&] { return state_->done; });
+}
+
+const FogLightPrewarm::Summary& FogLightPrewarm::summary() const {
+  wait();
+  return state_->summary;
 }
 
 }  // namespace fogbeam

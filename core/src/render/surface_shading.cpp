@@ -118,6 +118,9 @@ void SurfaceShader::prepareFogLight(const Scene& scene, FogLightFrame& f, Thread
   // No shipped multiple-scattering table for this phase function: no fog light (docs/airlight.md).
   auto table = FogLightTable::shipped(scene.fog.phase, scene.fog.albedo, pool, cacheDir_, &cacheError_);
   if (!table) return;
+  // Another table (phase function or albedo) may have other emission bins: the maps are asked
+  // for again (AnnulusMeanMap::shared hands back those alive with the same edges).
+  if (table->get() != fogTable_.get()) fogMaps_.clear();
   fogTable_ = std::move(table).value();
   f.table = fogTable_.get();
   f.table_owner = fogTable_;
@@ -141,7 +144,7 @@ void SurfaceShader::prepareFogLight(const Scene& scene, FogLightFrame& f, Thread
     auto it = std::find_if(fogMaps_.begin(), fogMaps_.end(),
                            [&](const FogMap& m) { return m.profile == l.profile && m.frontOnly == front; });
     if (it == fogMaps_.end()) {
-      fogMaps_.push_back(FogMap{l.profile, front, AnnulusMeanMap::build(l.profile, fogTable_->edges(), front, pool, cacheDir_, &cacheError_)});
+      fogMaps_.push_back(FogMap{l.profile, front, AnnulusMeanMap::shared(l.profile, fogTable_->edges(), front, pool, cacheDir_, &cacheError_)});
       it = std::prev(fogMaps_.end());
     }
     k.map = it->map.get();

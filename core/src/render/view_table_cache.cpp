@@ -6,6 +6,7 @@
 #include <fogbeam/util/overloaded.hpp>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -88,8 +89,13 @@ class Reader {
 // bytes as the body.
 constexpr char kBlobMagic[8] = {'F', 'B', 'F', 'L', 'C', 'A', 'C', '1'};
 
-// "<kind>-<hash>.bin": view tables are "vt", the fog light's annulus maps "am" (evictOldest
-// counts both).
+// The kinds of cache file, each name's prefix ("<kind>-<hash>.bin"): view tables, the fog
+// light's annulus maps and its tables. evictOldest counts these and only these, so storeBytes
+// refuses any other kind (a file it would never trim).
+constexpr std::array<std::string_view, 3> kKinds = {"vt", "am", "fl"};
+
+bool knownKind(std::string_view kind) { return std::find(kKinds.begin(), kKinds.end(), kind) != kKinds.end(); }
+
 std::filesystem::path fileFor(const std::filesystem::path& dir, const TableKey& key, std::string_view kind = "vt") {
   char name[48];
   std::snprintf(name, sizeof name, "%.*s-%016llx.bin", static_cast<int>(kind.size()), kind.data(),
@@ -292,19 +298,32 @@ Status storeLampTables(const std::filesystem::path& dir, const TableKey& key, co
   return writeInPlace(dir, fileFor(dir, key), w);
 }
 
-bool loadBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::string& out) {
-  std::string file;
+namespace {
+// The blob stored under `key`, read and verified into `file`; [data, data + n) its body.
+bool loadBlob(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::string& file,
+              const char*& data, std::size_t& n) {
   std::size_t body = 0;
   if (!readVerified(fileFor(dir, key, kind), file, body)) return false;
   Reader r(file.data(), body);
-  if (!readHeader(r, kBlobMagic, key)) return false;
-  std::vector<char> v;  // a damaged file leaves `out` as it was
-  if (!r.array(v, std::size_t{1} << 33) || r.at() != body) return false;
-  out.assign(v.begin(), v.end());
+  std::uint64_t count = 0;
+  if (!readHeader(r, kBlobMagic, key) || !r.get(count) || count != body - r.at()) return false;
+  n = static_cast<std::size_t>(count);
+  return r.skip(n, data);
+}
+}  // namespace
+
+bool loadBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::string& out) {
+  std::string file;
+  const char* data = nullptr;
+  std::size_t n = 0;
+  if (!loadBlob(dir, kind, key, file, data, n)) return false;  // a damaged file leaves `out` as it was
+  out.assign(data, n);
   return true;
 }
 
 Status storeBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::string_view data) {
+  if (!knownKind(kind))
+    return Error{"table cache: unknown kind of file '" + std::string(kind) + "' (expected vt, am or fl)"};
   Writer w;
   writeHeader(w, kBlobMagic, key);
   w.put(static_cast<std::uint64_t>(data.size()));
@@ -313,10 +332,12 @@ Status storeBytes(const std::filesystem::path& dir, std::string_view kind, const
 }
 
 bool loadFloats(const std::filesystem::path& dir, std::string_view kind, const TableKey& key, std::vector<float>& out) {
-  std::string bytes;
-  if (!loadBytes(dir, kind, key, bytes) || bytes.size() % sizeof(float) != 0) return false;
-  out.resize(bytes.size() / sizeof(float));
-  std::memcpy(out.data(), bytes.data(), bytes.size());
+  std::string file;
+  const char* data = nullptr;
+  std::size_t n = 0;
+  if (!loadBlob(dir, kind, key, file, data, n) || n % sizeof(float) != 0) return false;
+  out.resize(n / sizeof(float));
+  std::memcpy(out.data(), data, n);
   return true;
 }
 
@@ -339,8 +360,10 @@ void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& 
   std::error_code ec;
   for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    const bool ours = name.rfind("vt-", 0) == 0 || name.rfind("am-", 0) == 0 || name.rfind("fl-", 0) == 0;
-    if (!ours || it->path().extension() != ".bin") continue;
+    const std::size_t dash = name.find('-');
+    if (dash == std::string::npos || !knownKind(std::string_view(name).substr(0, dash)) ||
+        it->path().extension() != ".bin")
+      continue;
     std::error_code e1, e2;
     const auto bytes = it->file_size(e1);
     const auto time = it->last_write_time(e2);

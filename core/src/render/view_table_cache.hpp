@@ -84,8 +84,9 @@ void evictOldest(const std::filesystem::path& dir, const std::filesystem::path& 
 /// "am" for the fog light's annulus maps, "fl" for its tables, fog_light.hpp), with the view
 /// tables' checks: the code version and the whole key compared, a checksum, written under a
 /// temporary name and renamed; the directory trimmed as evictOldest says (which counts "vt",
-/// "am" and "fl" files). loadFloats: false on any miss, `out` then untouched. storeFloats:
-/// errors name the file and the call. loadBytes / storeBytes: the same for bytes.
+/// "am" and "fl" files, so a store of any other kind is refused). loadFloats: false on any
+/// miss, `out` then untouched. storeFloats: errors name the file and the call. loadBytes /
+/// storeBytes: the same for bytes.
 [[nodiscard]] bool loadBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,
                              std::string& out);
 [[nodiscard]] Status storeBytes(const std::filesystem::path& dir, std::string_view kind, const TableKey& key,

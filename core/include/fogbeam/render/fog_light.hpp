@@ -215,6 +215,20 @@ class AnnulusMeanMap {
                                                                    ThreadPool* pool = nullptr,
                                                                    const std::string& cacheDir = {},
                                                                    std::string* cacheError = nullptr);
+  /// build()'s map, shared by the whole process: the one alive for the same profile (by
+  /// identity), edges and frontOnly, else build()'s (the 16 most recent kept alive besides those
+  /// held). One build at a time (SharedCache): a thread that asks for a map another thread is
+  /// building waits for it instead of building it twice, so a map made ahead of the frames
+  /// (FogLightPrewarm) is the one every SurfaceShader and GL pass of the process uses.
+  /// Thread-safety: any thread; `pool` is used by the calling thread alone.
+  [[nodiscard]] static std::shared_ptr<const AnnulusMeanMap> shared(const std::shared_ptr<const Profile>& profile,
+                                                                    const std::vector<double>& edges, bool frontOnly,
+                                                                    ThreadPool* pool = nullptr,
+                                                                    const std::string& cacheDir = {},
+                                                                    std::string* cacheError = nullptr);
+  /// How many maps build() has computed in this process (loads from the table cache not
+  /// counted): what tests read to tell a map made ahead from one made in a frame.
+  [[nodiscard]] static std::size_t buildsSoFar() noexcept;
   /// Whether build() loaded it from the table cache.
   [[nodiscard]] bool fromCache() const noexcept { return fromCache_; }
   /// Ī_k for the lamp-frame unit direction `w`, k < bins, into means[k], and (dipoles not null)
@@ -242,6 +256,53 @@ class AnnulusMeanMap {
   int nA_ = 0, nB_ = 0;
   std::vector<float> v_;  // [iα][iβ][k][kFloats]
   bool fromCache_ = false;
+};
+
+/// The fog light's table and its lamps' annulus maps made ahead of the frames that show the
+/// lamps. A map is ~0.9–1.0 s of work on 2 cores the first time a lamp file is ever seen (later
+/// runs load it from the table cache in a few ms), and SurfaceShader::prepareFogLight makes one
+/// on first use, in the frame: a service that knows its lamps (the ego's, the world's, every
+/// traffic class's) starts this at start-up so that the first oncoming car of a new lamp file
+/// does not hold its frame for a second. Runs on a thread of its own with a pool of `threads`
+/// (0: the machine's cores); the maps it makes are AnnulusMeanMap::shared's, held here while
+/// this object lives. A frame that needs a map before the thread reaches it waits for the map
+/// being built and then makes its own (never a map twice). Nothing in an image changes: the
+/// maps are the same whoever makes them.
+/// Thread-safety: ready(), wait() and summary() from any thread; the destructor stops the
+/// thread after the map in progress (at most ~1 s) and joins it.
+class FogLightPrewarm {
+ public:
+  struct Lamp {
+    std::shared_ptr<const Profile> profile;  ///< isotropic profiles need no map and are skipped
+    bool frontOnly = false;                  ///< the driver's own lamps (LampMount::Vehicle)
+  };
+  /// Starts the thread: the table for `phase` and `albedo` (nothing more when the phase
+  /// function has no multiple-scattering table), then each distinct (profile, frontOnly) in the
+  /// order given. `cacheDir`: the table cache (empty: none). `done` (may be empty) is called on
+  /// the thread when it has finished, with the summary (a service logs it).
+  struct Summary;
+  FogLightPrewarm(std::vector<Lamp> lamps, const Phase& phase, double albedo, unsigned threads,
+                  std::string cacheDir, std::function<void(const Summary&)> done = {});
+  ~FogLightPrewarm();
+  FogLightPrewarm(const FogLightPrewarm&) = delete;
+  FogLightPrewarm& operator=(const FogLightPrewarm&) = delete;
+
+  [[nodiscard]] bool ready() const;
+  void wait() const;
+  /// Waits for the thread, then: the maps made (or loaded), in the order asked; how many were
+  /// loaded from the table cache; the thread's wall time, s; the last failure, to store a table
+  /// or map in the cache or of the prewarm itself (memory; empty: none).
+  struct Summary {
+    std::vector<std::shared_ptr<const AnnulusMeanMap>> maps;
+    std::size_t loaded = 0;
+    double seconds = 0.0;
+    std::string error;
+  };
+  [[nodiscard]] const Summary& summary() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
 };
 
 /// One frame's lamps for the fog light, camera-relative (positions in metres from the eye).

@@ -32,6 +32,7 @@
 #include <fogbeam/ipc/state_store.hpp>
 #include <fogbeam/plugin/frame_renderer.hpp>
 #include <fogbeam/plugin/service_config.hpp>
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/result.hpp>
 
@@ -139,6 +140,11 @@ class FramePipeline {
   /// Frames handed to sinks, every channel of each consumed without error, since create().
   [[nodiscard]] std::uint64_t handed() const noexcept { return handed_; }
 
+  /// The fog light's maps made ahead ([glow] surfaces on): started by create() for the ego's,
+  /// the world's and every traffic class's lamps (FogLightPrewarm); null when the fog light is
+  /// off. Tests wait on it; frames never do, except for a map they need that it is building.
+  [[nodiscard]] const FogLightPrewarm* fogLightPrewarm() const noexcept { return fogPrewarm_.get(); }
+
   [[nodiscard]] const ServiceConfig& config() const noexcept { return config_; }
   [[nodiscard]] std::size_t channelCount() const noexcept { return renderers_.size(); }
   /// Channel `c`'s renderer (its FOGBEAM_FORMAT_* for the shared-memory segment: shmFormat()).
@@ -156,6 +162,7 @@ class FramePipeline {
                   std::size_t* failedChannel);
 
   ServiceConfig config_;
+  std::unique_ptr<FogLightPrewarm> fogPrewarm_;  ///< before gl_ and the renderers: destroyed after them
   std::unique_ptr<GlSurfacePass> gl_;
   std::vector<std::unique_ptr<ChannelRenderer>> renderers_;
   bool awaitTables_ = false;
