@@ -55,10 +55,14 @@ ipc::Clock::time_point newestInput(const ipc::SimSnapshot& state) {
 /// own while the channels start (FogLightPrewarm): the ego's lamps first (the first frame shows
 /// them), then the world's, then each traffic class's, so that the first car of a lamp file
 /// never seen before (no map in the table cache) does not hold its frame for the map's ~1 s.
-/// Null when the fog light is off ([glow] enabled and surfaces) or the fog scatters nothing.
+/// Null when the fog light is off ([glow] enabled and surfaces), the fog scatters nothing, or
+/// every channel takes the host's depth (no surfaces of fogbeam's own to light).
 std::unique_ptr<FogLightPrewarm> startFogLightPrewarm(const ServiceConfig& config, const Scene& world) {
   const GlowOptions& glow = config.effects.glow;
   if (!glow.enabled || !glow.surfaces || !(config.fog.albedo > 0.0)) return nullptr;
+  if (std::all_of(config.channels.begin(), config.channels.end(),
+                  [](const ChannelConfig& c) { return !c.depth_from.empty(); }))
+    return nullptr;
   std::vector<FogLightPrewarm::Lamp> lamps;
   for (const RigLamp& r : config.ego.lamps) lamps.push_back({r.lamp.lamp.profile, true});
   for (const SceneLamp& l : world.lamps)

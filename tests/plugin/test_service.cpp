@@ -549,10 +549,16 @@ TEST(Service, TheFogLightsMapsAreMadeBeforeTheFramesThatShowTheLamps) {
   EXPECT_EQ(sink.metas[0].traffic_count, 1u);
   EXPECT_EQ(AnnulusMeanMap::buildsSoFar(), made);
 
-  // Glow off: no prewarm at all.
+  // Glow off: no prewarm at all; nor where every channel takes the host's depth (no surfaces of
+  // fogbeam's own for the fog light to light).
   auto off = FramePipeline::create(configOf(kSmall, {"timing.mode=\"lock-step\""}), *world, nullptr, true);
   ASSERT_TRUE(off) << off.error().message;
   EXPECT_EQ((*off)->fogLightPrewarm(), nullptr);
+  ServiceConfig hostDepth = configOf(kSmall, {"timing.mode=\"lock-step\"", "glow.enabled=true"});
+  for (ChannelConfig& c : hostDepth.channels) c.depth_from = "host";
+  auto overlayOnly = FramePipeline::create(hostDepth, *world, nullptr, true);
+  ASSERT_TRUE(overlayOnly) << overlayOnly.error().message;
+  EXPECT_EQ((*overlayOnly)->fogLightPrewarm(), nullptr);
 }
 
 }  // namespace

@@ -142,7 +142,8 @@ class FramePipeline {
 
   /// The fog light's maps made ahead ([glow] surfaces on): started by create() for the ego's,
   /// the world's and every traffic class's lamps (FogLightPrewarm); null when the fog light is
-  /// off. Tests wait on it; frames never do, except for a map they need that it is building.
+  /// off or every channel takes the host's depth. Tests wait on it; frames never do, except for
+  /// a map they need that it is building.
   [[nodiscard]] const FogLightPrewarm* fogLightPrewarm() const noexcept { return fogPrewarm_.get(); }
 
   [[nodiscard]] const ServiceConfig& config() const noexcept { return config_; }
