@@ -310,48 +310,32 @@ SharedCache<TableCacheKey, FogLightTable>& tableCache() {
   static SharedCache<TableCacheKey, FogLightTable> cache(4);
   return cache;
 }
-
-// The table's arrays as bytes (lengths first) for the table cache on disk, and back.
-template <class T>
-void putArray(std::string& out, const std::vector<T>& v) {
-  const auto n = static_cast<std::uint64_t>(v.size());
-  out.append(reinterpret_cast<const char*>(&n), sizeof n);
-  out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-}
-template <class T>
-bool getArray(std::string_view& in, std::vector<T>& v, std::size_t want) {
-  std::uint64_t n = 0;
-  if (in.size() < sizeof n) return false;
-  std::memcpy(&n, in.data(), sizeof n);
-  in.remove_prefix(sizeof n);
-  if (n != want || in.size() / sizeof(T) < n) return false;
-  v.resize(want);
-  std::memcpy(v.data(), in.data(), want * sizeof(T));
-  in.remove_prefix(want * sizeof(T));
-  return true;
-}
 }  // namespace
 
 std::string FogLightTable::toBytes() const {
-  std::string out;
-  putArray(out, std::vector<double>{albedo_});
-  for (const std::vector<double>* v : {&edges_, &t_, &logEnv_, &norm_}) putArray(out, *v);
-  putArray(out, dense_);
-  putArray(out, denseSum_);
-  return out;
+  // The table cache's own layout (detail::Writer: each array's count, then its elements).
+  detail::Writer w;
+  w.array(std::vector<double>{albedo_});
+  for (const std::vector<double>* v : {&edges_, &t_, &logEnv_, &norm_}) w.array(*v);
+  w.array(dense_);
+  w.array(denseSum_);
+  return std::move(w.data());
 }
 
 std::shared_ptr<const FogLightTable> FogLightTable::fromBytes(std::string_view in, const std::vector<double>& wantEdges,
                                                               double albedo) {
   std::shared_ptr<FogLightTable> t(new FogLightTable());
+  detail::Reader r(in.data(), in.size());
+  // Each array exactly `want` long (Reader::array bounds it by want and by the bytes left).
+  auto exactly = [&r](auto& v, std::size_t want) { return r.array(v, want) && v.size() == want; };
   std::vector<double> a;
   const std::size_t edges = wantEdges.size();
-  if (edges < 2 || !getArray(in, a, 1) || a[0] != albedo) return nullptr;
+  if (edges < 2 || !exactly(a, 1) || a[0] != albedo) return nullptr;
   t->albedo_ = albedo;
   const std::size_t bins = edges - 1, nT = static_cast<std::size_t>(kTNodes);
-  if (!getArray(in, t->edges_, edges) || !getArray(in, t->t_, nT) || !getArray(in, t->logEnv_, nT * bins) ||
-      !getArray(in, t->norm_, nT * bins * kCoefficients) || !getArray(in, t->dense_, kDenseNodes * bins * kCoefficients) ||
-      !getArray(in, t->denseSum_, kDenseNodes * kSymmetric) || !in.empty() || t->edges_ != wantEdges)
+  if (!exactly(t->edges_, edges) || !exactly(t->t_, nT) || !exactly(t->logEnv_, nT * bins) ||
+      !exactly(t->norm_, nT * bins * kCoefficients) || !exactly(t->dense_, kDenseNodes * bins * kCoefficients) ||
+      !exactly(t->denseSum_, kDenseNodes * kSymmetric) || r.at() != in.size() || t->edges_ != wantEdges)
     return nullptr;
   return t;
 }

@@ -21,12 +21,69 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 namespace fogbeam::detail {
+
+/// The cache files' bytes: values and arrays (a 64-bit count, then the elements) appended as the
+/// machine lays them out (a cache is per machine), and read back with bounds checked: every
+/// get fails, rather than reads past the end, on a short or damaged file.
+class Writer {
+ public:
+  template <class T>
+  void put(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    const auto* p = reinterpret_cast<const char*>(&v);
+    out_.insert(out_.end(), p, p + sizeof(T));
+  }
+  void bytes(const char* p, std::size_t n) { out_.insert(out_.end(), p, p + n); }
+  template <class T>
+  void array(const std::vector<T>& v) {
+    put(static_cast<std::uint64_t>(v.size()));
+    bytes(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  }
+  std::string& data() { return out_; }
+
+ private:
+  std::string out_;
+};
+
+class Reader {
+ public:
+  Reader(const char* p, std::size_t n) : p_(p), n_(n) {}
+  template <class T>
+  bool get(T& v) {
+    if (n_ - at_ < sizeof(T)) return false;
+    std::memcpy(&v, p_ + at_, sizeof(T));
+    at_ += sizeof(T);
+    return true;
+  }
+  bool skip(std::size_t n, const char*& start) {
+    if (n_ - at_ < n) return false;
+    start = p_ + at_;
+    at_ += n;
+    return true;
+  }
+  template <class T>
+  bool array(std::vector<T>& v, std::size_t maxCount) {
+    std::uint64_t n = 0;
+    if (!get(n) || n > maxCount || (n_ - at_) / sizeof(T) < n) return false;
+    v.resize(static_cast<std::size_t>(n));
+    std::memcpy(v.data(), p_ + at_, static_cast<std::size_t>(n) * sizeof(T));
+    at_ += static_cast<std::size_t>(n) * sizeof(T);
+    return true;
+  }
+  [[nodiscard]] std::size_t at() const noexcept { return at_; }
+
+ private:
+  const char* p_;
+  std::size_t n_, at_ = 0;
+};
 
 /// The bytes a cached table depends on (exact bit patterns of doubles, lengths before strings),
 /// and values that match within a tolerance: a lamp's pose in the camera frame, which a moving
