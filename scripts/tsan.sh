@@ -7,7 +7,9 @@
 # CAN over cannelloni at 60 and 50 Hz, status requests every 100 ms, the heartbeat, background
 # table builds, the airlight workers, a shared-memory reader: ServiceUnderLoad in
 # tests/plugin/test_service_load.cpp). `fogbeam serve` is option parsing around that Service.
-# Builds the `tsan` preset (-O1: the two test binaries only); known non-races are suppressed in
+# The frame path's thread pool (ThreadPool.*: loops back to back with workers waking late) runs
+# first, alone (a fraction of a second).
+# Builds the `tsan` preset (-O1: the three test binaries only); known non-races are suppressed in
 # tests/tsan.supp (each explained). The runs go side by side (each waits on sockets and frame
 # clocks much of the time); each one's output is kept in build/tsan/tsan-*.log and shown when it
 # fails.
@@ -31,6 +33,11 @@ cmake --preset tsan >/dev/null
 cmake --build --preset tsan -j "$(nproc)"
 export TSAN_OPTIONS="suppressions=$PWD/tests/tsan.supp halt_on_error=1 second_deadlock_stack=1"
 logs=build/tsan
+if ! build/tsan/tests/fogbeam_util_tests --gtest_filter='ThreadPool.*' >"$logs/tsan-util.log" 2>&1; then
+  echo "tsan: thread pool FAILED:"
+  tail -60 "$logs/tsan-util.log"
+  exit 1
+fi
 build/tsan/tests/fogbeam_ipc_tests --gtest_filter='StateStore*:UdpReceiver*:ShmChannel*:CanInput*' \
   >"$logs/tsan-ipc.log" 2>&1 &
 ipc=$!
@@ -54,5 +61,5 @@ if ! build/tsan/tests/fogbeam_service_tests \
   failed=1
 fi
 [ "$failed" -eq 0 ] || exit 1
-grep -h "tests ran\|PASSED\|SKIPPED\|frames read" "$logs/tsan-ipc.log" "$logs/tsan-service.log" "$logs/tsan-overlap.log"
-echo "tsan: state store, UDP receiver, CAN input, shm channel, end-to-end, Service tests (the frame loop with every thread busy) and overlapped frames clean under ThreadSanitizer"
+grep -h "tests ran\|PASSED\|SKIPPED\|frames read" "$logs/tsan-util.log" "$logs/tsan-ipc.log" "$logs/tsan-service.log" "$logs/tsan-overlap.log"
+echo "tsan: thread pool, state store, UDP receiver, CAN input, shm channel, end-to-end, Service tests (the frame loop with every thread busy) and overlapped frames clean under ThreadSanitizer"

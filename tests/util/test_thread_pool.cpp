@@ -51,6 +51,26 @@ TEST(ThreadPool, ThreadIndicesNameDistinctThreadsAndTheCallerIsZero) {
   EXPECT_NE(*ids1.begin(), caller);
 }
 
+// Loops back to back, each so short that the caller often does all of it before a worker has
+// woken: the worker then wakes into a loop that has returned (or into the next one). It must
+// take nothing of the loop that has returned (its function and count are gone, its counter is
+// the next loop's) and each index of the next must still run once. CI's ThreadSanitizer run
+// caught a worker reading the count of a loop that had returned while the next loop set it
+// (scripts/tsan.sh runs this test); in a plain build the same fault can run an index twice.
+TEST(ThreadPool, AWorkerWakingLateTakesNothingOfALoopThatHasReturned) {
+  ThreadPool pool(2);
+  std::vector<std::atomic<int>> hits(4);
+  for (int k = 0; k < 20'000; ++k) {
+    const std::size_t n = 2 + static_cast<std::size_t>(k % 3);
+    for (std::size_t i = 0; i < n; ++i) hits[i].store(0, std::memory_order_relaxed);
+    pool.parallelFor(n, [&hits, n](std::size_t i) {
+      ASSERT_LT(i, n);
+      hits[i].fetch_add(1, std::memory_order_relaxed);
+    });
+    for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(hits[i].load(), 1) << "loop " << k << " index " << i;
+  }
+}
+
 TEST(ThreadPool, AOneThreadPoolRunsOnTheCaller) {
   ThreadPool pool(1);
   EXPECT_EQ(pool.size(), 1u);

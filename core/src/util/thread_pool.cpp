@@ -28,6 +28,12 @@ void ThreadPool::workerLoop(unsigned index) {
       wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
       if (stop_) return;
       seen = generation_;
+      // fn_ is null once the loop that woke this worker has returned (its caller did all of it
+      // before this worker took the lock). Then there is nothing to take: its count and counter
+      // are about to be the next loop's, which wakes this worker again (generation_ moves on).
+      // A worker counted in busy_ is waited for before fn_, n_ and next_ change, so runChunks
+      // reads them without the lock.
+      if (fn_ == nullptr) continue;
       ++busy_;
     }
     runChunks(index);
