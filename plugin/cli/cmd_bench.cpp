@@ -559,7 +559,7 @@ json glowGlareStage(SizeRun& run) {
   // 4 000 cd every 25 m along both sides of the road, 8 m high, until there are 12 lamps that are
   // not the ego's; those hidden behind a surface do not glow), glare off. The
   // lamps move 0.5 m a frame, so every frame computes every lamp's curve anew.
-  StageStats dozenStats;
+  StageStats dozenStats, dozenInfStats;
   int dozen = 0;
   {
     Scene many = run.scene;
@@ -583,18 +583,26 @@ json glowGlareStage(SizeRun& run) {
     glowOpt.enabled = true;
     auto fxPool = std::shared_ptr<ThreadPool>(&run.pool, [](ThreadPool*) {});
     auto fx12 = LampEffects::build(many, glowOpt, GlareOptions{}, fxPool);
-    if (fx12) {
+    // The same frames in infinite fog (no ground factor), alternated with them: what the factor costs.
+    GlowOptions infOpt = glowOpt;
+    infOpt.ground_reflectance = -1.0;
+    auto fx12inf = LampEffects::build(many, infOpt, GlareOptions{}, fxPool);
+    if (fx12 && fx12inf) {
+      LampEffectsReport repInf;
       for (int f = 0; f < run.o.frames + 1; ++f) {
         for (auto& l : many.lamps)
           if (l.mount != LampMount::Vehicle) l.lamp.position_m.x -= 0.5;
         fx12->evaluate(many, run.surface, glowLayer, glareLayer, rep);
         if (f > 0) dozenStats.ms.push_back(1e3 * rep.glow_seconds);  // the first sizes the buffers
+        fx12inf->evaluate(many, run.surface, glowLayer, glareLayer, repInf);
+        if (f > 0) dozenInfStats.ms.push_back(1e3 * repInf.glow_seconds);
       }
       for (const auto& l : rep.lamps) dozen += !l.own && l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
     }
   }
   return {{"glow", glowStats.toJson()},
           {"glow_dozen_lamps", dozenStats.toJson()},
+          {"glow_dozen_lamps_infinite_fog", dozenInfStats.toJson()},
           {"lamps_glowing_in_dozen", dozen},
           {"glare", glareStats.toJson()},
           {"lamps_in_view", visible},
@@ -790,6 +798,9 @@ void printEffects(const json& e) {
     std::snprintf(note, sizeof note, "  12 lamps, %d glowing (the rest hidden), all moving: curves anew each frame",
                   e["lamps_glowing_in_dozen"].get<int>());
     printStage("glow, a dozen lamps", e["glow_dozen_lamps"], note);
+    if (e.contains("glow_dozen_lamps_infinite_fog"))
+      printStage("  the same, infinite fog", e["glow_dozen_lamps_infinite_fog"],
+                 "  no ground factor ([glow] ground = false), frames alternated with the above");
   }
   std::snprintf(note, sizeof note, "  E at the eye %.3g lx, L_v at the centre %.3g cd/m2; +%.1f %% of the light",
                 e["eye_illuminance_lx"].get<double>(), e["veiling_luminance_centre_cd_m2"].get<double>(),

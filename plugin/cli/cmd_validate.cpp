@@ -229,6 +229,39 @@ bool validatePathTracer(int samples, const std::string& csvPath, const std::stri
     own.lamp_axis = Vec3(1, 0, 0);
     cases.push_back(own);
   }
+  {
+    // Where the ground should show more (last, so that the cases above keep their seeds): a far
+    // lamp in wider-scattering fog (more of its light diffuses down to the road, which absorbs
+    // it), and snow (ρ = 0.8: the road sends it back up).
+    RingComparisonCase far{"HG 0.75, K_t R = 8, road 1.2 m below (rho 0.1)", HenyeyGreensteinPhase{0.75}, 8.0};
+    far.ground_below_m = 1.2;
+    far.ground_reflectance = 0.1;
+    cases.push_back(far);
+    RingComparisonCase snow{"HG 0.85, K_t R = 4.5, snow 1.2 m below (rho 0.8)", HenyeyGreensteinPhase{0.85}, 4.5};
+    snow.ground_below_m = 1.2;
+    snow.ground_reflectance = 0.8;
+    cases.push_back(snow);
+    // Between the ground factor's nodes (ground_correction.hpp: T 4 and 8, ρ 0.1 and 0.3, height
+    // 0.072 optical depths): K_t = 0.03 /m (the eye 0.036 above the road), ρ = 0.15, T = 6.
+    RingComparisonCase thin{"HG 0.8, K_t R = 6, K_t 0.03, road 1.2 m below (rho 0.15)", HenyeyGreensteinPhase{0.8}, 6.0};
+    thin.extinction_per_m = 0.03;
+    thin.ground_below_m = 1.2;
+    thin.ground_reflectance = 0.15;
+    cases.push_back(thin);
+    // Wet snow or light concrete between ρ nodes 0.3 and 0.8.
+    RingComparisonCase bright{"HG 0.85, K_t R = 3, road 1.2 m below (rho 0.5)", HenyeyGreensteinPhase{0.85}, 3.0};
+    bright.ground_below_m = 1.2;
+    bright.ground_reflectance = 0.5;
+    cases.push_back(bright);
+    // A street lamp's head 8 m over the road (0.48 optical depths; the factor's lamp is at the
+    // eye's height), 67 m away.
+    RingComparisonCase street{"street lamp 8 m over the road (rho 0.1), HG 0.85, K_t R = 4", HenyeyGreensteinPhase{0.85},
+                              4.0};
+    street.ground_below_m = 1.2;
+    street.ground_reflectance = 0.1;
+    street.lamp_above_eye_m = 6.8;
+    cases.push_back(street);
+  }
   auto pool = std::make_shared<ThreadPool>(0);
   std::ofstream csv;
   if (!csvPath.empty()) {
@@ -255,8 +288,9 @@ bool validatePathTracer(int samples, const std::string& csvPath, const std::stri
     std::printf("  %s (R = %.0f m), glow %s%s; fogbeam %.2f s, path tracer %.1f s\n", c.name.c_str(), res->distance_m,
                 res->glow_from_table ? "from the tables" : ("APSF, lambda " + std::to_string(res->glow_scale)).c_str(),
                 res->lamp_visible || headlamp ? "" : " (LAMP NOT VISIBLE)", res->fogbeam_seconds, res->path_tracer_seconds);
-    std::printf("    %-9s %7s %10s %10s %12s %22s %22s %8s %14s %7s\n", "ring deg", "pixels", "fb single", "fb glow",
-                "fb sgl+glow", "PT single", "PT all orders", "PT all/1", "(fb s+g)/PT", "events");
+    std::printf("    %-9s %7s %10s %10s %12s %22s %22s %8s %14s %7s%s\n", "ring deg", "pixels", "fb single", "fb glow",
+                "fb sgl+glow", "PT single", "PT all orders", "PT all/1", "(fb s+g)/PT", "events",
+                c.ground_below_m > 0.0 ? "   no ground factor" : "");
     for (const RingFigures& f : res->rings) {
       char ring[32];
       if (std::isfinite(f.hi_deg)) std::snprintf(ring, sizeof ring, "%.1f-%.0f", f.lo_deg, f.hi_deg);
@@ -264,10 +298,14 @@ bool validatePathTracer(int samples, const std::string& csvPath, const std::stri
       const double gap = std::abs(f.pt_single.mean - f.single);
       const bool plumb = gap <= 3.0 * f.pt_single.std_error + 0.01 * f.single;
       ok = ok && plumb && (res->lamp_visible || headlamp);
-      std::printf("    %-9s %7zu %10.4g %10.4g %12.4g %11.4g +- %-8.2g %11.4g +- %-8.2g %8.2f %7.3f +- %-5.3f %6.0f%s\n",
+      std::printf("    %-9s %7zu %10.4g %10.4g %12.4g %11.4g +- %-8.2g %11.4g +- %-8.2g %8.2f %7.3f +- %-5.3f %6.0f",
                   ring, f.pixels, f.single, f.glow, f.single + f.glow, f.pt_single.mean, f.pt_single.std_error,
                   f.pt_all.mean, f.pt_all.std_error, f.pt_single.mean > 0 ? f.pt_all.mean / f.pt_single.mean : 0.0,
-                  f.ratio(), f.ratioError(), f.mean_events, plumb ? "" : "  single MISMATCH");
+                  f.ratio(), f.ratioError(), f.mean_events);
+      // With a ground: the ratio fogbeam would have with infinite fog's glow (no ground factor).
+      if (c.ground_below_m > 0.0 && f.pt_all.mean > 0.0)
+        std::printf("   %7.3f", (f.single + f.glow_infinite) / f.pt_all.mean);
+      std::printf("%s\n", plumb ? "" : "  single MISMATCH");
       if (csv.is_open()) {
         const double g = std::holds_alternative<HenyeyGreensteinPhase>(c.phase)
                              ? std::get<HenyeyGreensteinPhase>(c.phase).g

@@ -103,6 +103,12 @@ struct RingComparisonCase {
   /// glow up to it, the path tracer's paths reflect off it).
   double ground_below_m = 0.0;
   double ground_reflectance = 0.1;
+  /// The lamp this far above the eye's height (a street lamp's head: 8 m over the road for an eye
+  /// 1.2 m above it is 6.8), still R = T / K_t from the eye; the rings are about its direction.
+  double lamp_above_eye_m = 0.0;
+  /// Whether fogbeam's glow knows the ground (GlowOptions::ground_reflectance); false: the glow of
+  /// infinite fog over the same ground, to show what the ground factor changes.
+  bool glow_knows_ground = true;
 };
 
 struct RingFigures {
@@ -110,6 +116,9 @@ struct RingFigures {
   std::size_t pixels = 0;
   double single = 0.0;  ///< fogbeam single scattering, cd/m²
   double glow = 0.0;    ///< fogbeam glow layer, cd/m²
+  /// With a ground the glow knows: the glow of infinite fog over the same pixels (what the ground
+  /// factor changed); else = glow.
+  double glow_infinite = 0.0;
   McEstimate pt_single, pt_all;
   double mean_events = 0.0;
   [[nodiscard]] double ratio() const { return pt_all.mean > 0.0 ? (single + glow) / pt_all.mean : 0.0; }
@@ -156,7 +165,8 @@ inline Result<Scene> comparisonScene(const RingComparisonCase& c, int pixels, Su
   scene.camera.height = pixels;
   SceneLamp lamp;
   lamp.name = "lamp";
-  lamp.lamp.position_m = Vec3(distance_m, 0.0, 0.0);
+  const double rise = std::clamp(c.lamp_above_eye_m / distance_m, -1.0, 1.0);
+  lamp.lamp.position_m = distance_m * Vec3(std::sqrt(1.0 - rise * rise), 0.0, rise);
   lamp.lamp.worldFromLamp = worldFromAxis(c.lamp_axis);
   if (c.profile) {
     lamp.lamp.profile = c.profile;
@@ -194,7 +204,7 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   const auto& ringsDeg = comparisonRingsDeg();
   const std::size_t nRings = ringsDeg.size();
   std::vector<std::vector<std::uint32_t>> members(nRings + 1);
-  const Vec3 toLamp(1.0, 0.0, 0.0);
+  const Vec3 toLamp = glm::normalize(lamp.lamp.position_m - scene.camera.position_m);
   const double frameFrom = radians(ringsDeg.front()[0]);
   for (int j = 0; j < pixels; ++j)
     for (int i = 0; i < pixels; ++i) {
@@ -212,11 +222,24 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
   if (!air) return air.error();
   GlowOptions glowOn;
   glowOn.enabled = true;
+  // The glow knows the case's ground (GlowOptions::ground_reflectance); without one, infinite fog.
+  glowOn.ground_reflectance = c.ground_below_m > 0.0 && c.glow_knows_ground ? c.ground_reflectance : -1.0;
+  glowOn.ground_height_m = -c.ground_below_m;
   auto fx = LampEffects::build(scene, glowOn, GlareOptions{}, pool);
   if (!fx) return fx.error();
   std::vector<float> glow, glare;
   LampEffectsReport report;
   fx->evaluate(scene, surface, glow, glare, report);
+  std::vector<float> glowInf = glow;
+  if (glowOn.ground_reflectance >= 0.0) {
+    GlowOptions inf = glowOn;
+    inf.ground_reflectance = -1.0;
+    auto fxInf = LampEffects::build(scene, inf, GlareOptions{}, pool);
+    if (!fxInf) return fxInf.error();
+    LampEffectsReport unused;
+    std::vector<float> glareInf;
+    fxInf->evaluate(scene, surface, glowInf, glareInf, unused);
+  }
   if (!report.lamps.empty()) {
     out.lamp_visible = report.lamps[0].visible;
     out.glow_scale = report.lamps[0].glow_scale;
@@ -229,7 +252,7 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
     f.hi_deg = r < nRings ? ringsDeg[r][1] : std::numeric_limits<double>::infinity();
     f.pixels = members[r].size();
     if (members[r].empty()) return Error{"validate --path-tracer: ring without pixels (image too coarse)"};
-    double s = 0.0, g = 0.0;
+    double s = 0.0, g = 0.0, gi = 0.0;
     for (std::uint32_t k : members[r]) {
       const int i = static_cast<int>(k % static_cast<std::uint32_t>(pixels));
       const int j = static_cast<int>(k / static_cast<std::uint32_t>(pixels));
@@ -239,9 +262,11 @@ inline Result<RingComparison> compareRings(const RingComparisonCase& c, std::uin
       s += (static_cast<double>(rgb[0]) + static_cast<double>(rgb[1]) + static_cast<double>(rgb[2])) / 3.0;
       const std::size_t p = 3 * static_cast<std::size_t>(k);
       g += (static_cast<double>(glow[p]) + static_cast<double>(glow[p + 1]) + static_cast<double>(glow[p + 2])) / 3.0;
+      gi += (static_cast<double>(glowInf[p]) + static_cast<double>(glowInf[p + 1]) + static_cast<double>(glowInf[p + 2])) / 3.0;
     }
     f.single = s / static_cast<double>(members[r].size());
     f.glow = g / static_cast<double>(members[r].size());
+    f.glow_infinite = gi / static_cast<double>(members[r].size());
   }
   out.fogbeam_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
 

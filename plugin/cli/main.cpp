@@ -234,6 +234,9 @@ void addTablesCommand(CLI::App& app, int& exitCode) {
   sub->add_option("--seed", o->seed, "random seed (default 1)");
   sub->add_option("--threads", o->threads, "threads (default: all)");
   sub->add_option("--out", o->out, "table file to write")->required();
+  sub->add_flag("--ground", o->ground,
+                "estimate the ground's factor on the shipped table of the phase function instead (a .gnd file; "
+                "--paths per optical distance, reflectance and ring)");
   sub->callback([o, &exitCode] { exitCode = runTables(*o); });
 }
 

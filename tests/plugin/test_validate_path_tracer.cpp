@@ -89,5 +89,49 @@ TEST(ValidatePathTracer, SingleAndGlowAreWithinFifteenPercentOfAllOrders) {
   }
 }
 
+// The ground (GlowOptions::ground_reflectance, physics/ground_correction.hpp): a road 1.2 m under
+// the eye and the lamp, between the factor's nodes (K_t = 0.03 /m: 0.036 optical depths, between
+// its 0.03 and 0.09; ρ 0.15 and 0.6 between its 0.1, 0.3 and 0.8; T = 6 between 4 and 8). With
+// the factor, single + glow is closer to all orders than with the glow of infinite fog over the
+// same road (mean |log ratio| over the rings: dark road 0.15 against 0.28, snow 0.09 against
+// 0.13; the path tracer's figures are the same for both, so the comparison is deterministic),
+// and within 25 % (+ 3σ) in every ring. Issue 18's 15 % is not met in every ring between the
+// nodes (docs/airlight.md, "The ground": 0.83–1.24 here).
+TEST(ValidatePathTracer, TheGlowKnowsTheGround) {
+  auto pool = std::make_shared<ThreadPool>(2);
+  RingComparisonCase dark{"HG 0.85, K_t R = 6, K_t 0.03, road rho 0.15", HenyeyGreensteinPhase{0.85}, 6.0};
+  dark.extinction_per_m = 0.03;
+  dark.ground_below_m = 1.2;
+  dark.ground_reflectance = 0.15;
+  RingComparisonCase snow{"HG 0.85, K_t R = 4.5, snow rho 0.6", HenyeyGreensteinPhase{0.85}, 4.5};
+  snow.ground_below_m = 1.2;
+  snow.ground_reflectance = 0.6;
+  for (const RingComparisonCase& c : {dark, snow}) {
+    auto res = compareRings(c, test::scaled(12000, 3000), 13, pool, 151);
+    ASSERT_TRUE(res.has_value()) << res.error().message;
+    std::printf("  %s\n", c.name.c_str());
+    double logWith = 0.0, logWithout = 0.0;
+    for (const RingFigures& f : res->rings) {
+      const double blind = (f.single + f.glow_infinite) / f.pt_all.mean;
+      std::printf("    ring %4.1f-%4.1f: single + glow %.4g (infinite fog's glow %.4g); path tracer %.4g +- %.2g; ratio "
+                  "%.3f +- %.3f (without the ground factor %.3f)\n",
+                  f.lo_deg, f.hi_deg, f.single + f.glow, f.single + f.glow_infinite, f.pt_all.mean, f.pt_all.std_error,
+                  f.ratio(), f.ratioError(), blind);
+      if (!std::isfinite(f.hi_deg)) continue;  // the frame's paths spread over 0.5–24°: σ up to 50 % here
+      EXPECT_LT(std::abs(f.single + f.glow - f.pt_all.mean), 0.25 * f.pt_all.mean + 3.0 * f.pt_all.std_error)
+          << c.name << " " << f.lo_deg;
+      logWith += std::abs(std::log(f.ratio()));
+      logWithout += std::abs(std::log(blind));
+    }
+    std::printf("    mean |log ratio| over the rings: %.3f with the ground factor, %.3f without\n", logWith / 5.0,
+                logWithout / 5.0);
+    // The factor's teeth: the same path-tracer figures, nearer with it (the full paths only: the
+    // sanitizer pass's quarter is too noisy to order the two).
+    if (!test::reduced()) {
+      EXPECT_LT(logWith, logWithout) << c.name;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace fogbeam::cli

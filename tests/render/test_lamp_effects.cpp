@@ -3,6 +3,7 @@
 // hidden and switched-off lamps, and compositing.
 #include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/physics/glow.hpp>
+#include <fogbeam/physics/ground_correction.hpp>
 #include <fogbeam/physics/medium.hpp>
 #include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/physics/path_tracer.hpp>
@@ -172,6 +173,7 @@ TEST(LampEffectsLayers, GlowIsTheCurveAroundTheLampsImage) {
     auto pool = std::make_shared<ThreadPool>(2);
     GlowOptions opt = glowOn();
     opt.model = model;
+    opt.ground_reflectance = -1.0;  // infinite fog: the curve itself (the ground: the next test)
     LampEffects fx = LampEffects::build(s.scene, opt, GlareOptions{}, pool).value();
     std::vector<float> glow, glare;
     LampEffectsReport rep;
@@ -237,6 +239,44 @@ TEST(LampEffectsLayers, GlowIsTheCurveAroundTheLampsImage) {
 // light fills the fog ahead), never hidden by the bonnet, with no glare and nothing at the eye;
 // their glow's weight over a surface d away is K_t d / 2 up to d = 2/K_t; the APSF gives them
 // nothing; a file's light behind the lamp does not count.
+// The ground (GlowOptions::ground_reflectance, the default 0.1 on z = ground_height_m): the glow
+// is infinite fog's times the shipped factor at the lamp's optical distance, each pixel's angle
+// from the lamp, ρ and the mean optical height of the eye and the lamp over the ground.
+TEST(LampEffectsLayers, TheGroundMultipliesTheGlowByItsFactor) {
+  FxScene s = setup();
+  auto pool = std::make_shared<ThreadPool>(2);
+  const auto factor = shippedGroundCorrection(s.scene.fog.phase);
+  ASSERT_NE(factor, nullptr);
+  GlowOptions inf = glowOn();
+  inf.ground_reflectance = -1.0;
+  for (const double rho : {0.1, 0.8}) {
+    GlowOptions on = glowOn();
+    on.ground_reflectance = rho;
+    on.ground_height_m = -1.5;
+    std::vector<float> g0, g1, glare;
+    LampEffectsReport rep;
+    LampEffects::build(s.scene, inf, GlareOptions{}, pool).value().evaluate(s.scene, s.surface, g0, glare, rep);
+    LampEffects::build(s.scene, on, GlareOptions{}, pool).value().evaluate(s.scene, s.surface, g1, glare, rep);
+    const Vec3 lamp = s.scene.lamps[0].lamp.position_m, eye = s.scene.camera.position_m;
+    const double R = glm::length(lamp - eye), kt = s.scene.fog.extinction_per_m;
+    const double H = kt * 0.5 * ((eye.z + 1.5) + (lamp.z + 1.5));
+    double peak = 0.0;
+    for (float v : g0) peak = std::max(peak, static_cast<double>(v));
+    int checked = 0, changed = 0;
+    for (int j = 0; j < 55; j += 3)
+      for (int i = 0; i < 95; i += 3) {
+        const double base = static_cast<double>(g0[px(i, j)]);
+        if (base < 0.01 * peak) continue;
+        const double expected = base * factor->factor(kt * R, angleToLamp(s.scene, i, j), rho, H);
+        EXPECT_NEAR(static_cast<double>(g1[px(i, j)]), expected, 0.02 * expected) << "rho " << rho << " pixel " << i << ", " << j;
+        changed += std::abs(expected / base - 1.0) > 0.02 ? 1 : 0;
+        ++checked;
+      }
+    EXPECT_GT(checked, 50);
+    EXPECT_GT(changed, checked / 2) << "rho " << rho;  // the factor is not 1 here (T ≈ 2.4)
+  }
+}
+
 TEST(LampEffectsLayers, TheDriversOwnLampsGlowFromTheTablesOnly) {
   FxScene s = setup();
   s.scene.lamps.clear();

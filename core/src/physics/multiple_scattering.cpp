@@ -5,6 +5,8 @@
 #include "physics/airlight_tables.hpp"
 
 #include <fogbeam/physics/path_tracer.hpp>
+
+#include "table_text.hpp"
 #include <fogbeam/util/thread_pool.hpp>
 
 #include <algorithm>
@@ -535,17 +537,10 @@ Status MultipleScatteringTable::save(const std::filesystem::path& path) const {
   std::ofstream f(path);
   if (!f) return Error{"cannot write " + path.string()};
   f.precision(17);
-  const auto id = phaseIdentity(phase_);
   f << "fogbeam-multiple-scattering 1\n";
-  f << "phase " << describe(phase_) << "\n";
-  f << "phase_identity " << std::get<0>(id) << ' ' << std::get<1>(id) << ' ' << std::get<2>(id) << ' '
-    << std::get<3>(id) << "\n";
+  detail::writePhase(f, phase_);
   f << "paths " << paths_ << " seed " << seed_ << " max_order " << maxOrder_ << " mean_events " << meanEvents_ << "\n";
-  auto list = [&](const char* name, const std::vector<double>& v, double scale) {
-    f << name << ' ' << v.size();
-    for (double x : v) f << ' ' << x * scale;
-    f << "\n";
-  };
+  auto list = [&](const char* name, const std::vector<double>& v, double scale) { detail::writeList(f, name, v, scale); };
   list("optical_distances", t_, 1.0);
   list("angles_deg", theta_, 180.0 / kPi);
   list("albedos", albedo_, 1.0);
@@ -574,67 +569,24 @@ Status MultipleScatteringTable::save(const std::filesystem::path& path) const {
 }
 
 Result<MultipleScatteringTable> MultipleScatteringTable::load(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) return Error{"cannot open multiple-scattering table " + path.string()};
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse(text.str(), path.string());
+  auto text = detail::readTextFile(path, "multiple-scattering table");
+  if (!text) return text.error();
+  return parse(*text, path.string());
 }
 
 Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view text, const std::string& source) {
-  std::istringstream f{std::string(text)};
-  int lineNo = 0;
-  std::string line;
-  auto fail = [&](const std::string& what) { return Error{source + ":" + std::to_string(lineNo) + ": " + what}; };
-  auto next = [&](std::istringstream& ss, const char* key) -> bool {
-    if (!std::getline(f, line)) return false;
-    ++lineNo;
-    ss.clear();
-    ss.str(line);
-    std::string k;
-    return static_cast<bool>(ss >> k) && k == key;
-  };
-  std::istringstream ss;
-  int version = 0;
-  if (!next(ss, "fogbeam-multiple-scattering") || !(ss >> version) || version != 1)
-    return fail("expected the header 'fogbeam-multiple-scattering 1'");
-  if (!next(ss, "phase")) return fail("expected 'phase <name>'");
-  std::size_t kind = 0;
-  double a = 0, b = 0, c = 0;
-  if (!next(ss, "phase_identity") || !(ss >> kind >> a >> b >> c))
-    return fail("expected 'phase_identity <kind> <a> <b> <c>'");
-  Phase phase;
-  if (kind == 0) {
-    phase = IsotropicPhase{};
-  } else if (kind == 1) {
-    auto p = makeHenyeyGreenstein(a);
-    if (!p) return fail(p.error().message);
-    phase = *p;
-  } else if (kind == 2) {
-    auto p = makeFogMie(a);
-    if (!p) return fail(p.error().message);
-    phase = *p;
-  } else {
-    return fail("unknown phase kind " + std::to_string(kind));
-  }
-  if (phaseIdentity(phase) != PhaseIdentity{kind, a, b, c})
-    return fail("phase_identity does not match the phase rebuilt from it (written by another version?)");
+  detail::TableText in(text, source);
+  auto fail = [&](const std::string& what) { return in.fail(what); };
+  auto phase = in.headerAndPhase("fogbeam-multiple-scattering");
+  if (!phase) return phase.error();
   MultipleScatteringTable t;
-  t.phase_ = phase;
+  t.phase_ = *phase;
   std::string k1, k2, k3;
-  if (!next(ss, "paths") || !(ss >> t.paths_ >> k1 >> t.seed_ >> k2 >> t.maxOrder_ >> k3 >> t.meanEvents_) ||
+  if (!in.next("paths") || !(in.words() >> t.paths_ >> k1 >> t.seed_ >> k2 >> t.maxOrder_ >> k3 >> t.meanEvents_) ||
       k1 != "seed" || k2 != "max_order" || k3 != "mean_events")
     return fail("expected 'paths <N> seed <S> max_order <M> mean_events <E>'");
-  auto list = [&](const char* key, std::vector<double>& v, double scale, bool mayBeEmpty = false) -> Status {
-    std::size_t n = 0;
-    if (!next(ss, key) || !(ss >> n) || (n == 0 && !mayBeEmpty) || n > 100000)
-      return fail(std::string("expected '") + key + " <count> <values…>'");
-    v.resize(n);
-    for (auto& x : v) {
-      if (!(ss >> x)) return fail(std::string(key) + ": expected " + std::to_string(n) + " numbers");
-      x *= scale;
-    }
-    return Ok{};
+  auto list = [&](const char* key, std::vector<double>& v, double scale, bool mayBeEmpty = false) {
+    return in.list(key, v, scale, mayBeEmpty);
   };
   if (Status s = list("optical_distances", t.t_, 1.0); !s) return s.error();
   if (Status s = list("angles_deg", t.theta_, kPi / 180.0); !s) return s.error();
@@ -656,29 +608,22 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
   t.mean_.resize(n);
   t.stderr_.resize(n);
   for (std::size_t k = 0; k < n; ++k) {
-    if (!std::getline(f, line)) {
-      ++lineNo;
-      return fail("expected " + std::to_string(n) + " node lines, found " + std::to_string(k));
-    }
-    ++lineNo;
-    std::istringstream ls(line);
+    if (!in.nextLine()) return in.failMissing("expected " + std::to_string(n) + " node lines, found " + std::to_string(k));
+    std::istringstream& ls = in.words();
     if (!(ls >> t.mean_[k] >> t.stderr_[k]) || !std::isfinite(t.mean_[k]) || !(t.stderr_[k] >= 0.0) || t.mean_[k] < 0.0)
       return fail("expected '<mean ≥ 0> <standard error ≥ 0>'");
   }
   if (!t.edges_.empty()) {
     const std::size_t nK = t.edges_.size() - 1, nL = t.t_.size() * t.theta_.size();
-    if (!std::getline(f, line) || (++lineNo, line != "emission_shares"))
-      return fail("expected 'emission_shares' (the table has emission bins)");
+    if (!in.nextLine()) return in.failMissing("expected 'emission_shares' (the table has emission bins)");
+    if (in.line() != "emission_shares") return fail("expected 'emission_shares' (the table has emission bins)");
     // nL lines of nK numbers each, every one accepted by `ok(value, index)` (`bound` says how).
     auto binLines = [&](std::vector<double>& v, const std::string& what, const char* bound, auto ok) -> Status {
       v.resize(nL * nK);
       for (std::size_t l = 0; l < nL; ++l) {
-        if (!std::getline(f, line)) {
-          ++lineNo;
-          return fail("expected " + std::to_string(nL) + " " + what + " lines, found " + std::to_string(l));
-        }
-        ++lineNo;
-        std::istringstream ls(line);
+        if (!in.nextLine())
+          return in.failMissing("expected " + std::to_string(nL) + " " + what + " lines, found " + std::to_string(l));
+        std::istringstream& ls = in.words();
         for (std::size_t k = 0; k < nK; ++k)
           if (!(ls >> v[l * nK + k]) || !ok(v[l * nK + k], l * nK + k))
             return fail("expected " + std::to_string(nK) + " " + what + "s, each " + bound);
@@ -691,8 +636,8 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
       return s.error();
     // Optional (tables from before 2026-11-27 have none): the emission's first azimuthal harmonic,
     // each |value| at most its share (a mean of the share's light times a cosine).
-    while (std::getline(f, line)) {
-      ++lineNo;
+    while (in.nextLine()) {
+      const std::string& line = in.line();
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
       if (line != "emission_harmonics") return fail("expected 'emission_harmonics' or the end of the table");
       if (Status s = binLines(t.harmonics_, "emission harmonic", "within ± its share",
@@ -703,10 +648,8 @@ Result<MultipleScatteringTable> MultipleScatteringTable::parse(std::string_view 
         return s.error();
       break;
     }
-    while (std::getline(f, line)) {
-      ++lineNo;
-      if (line.find_first_not_of(" \t\r") != std::string::npos) return fail("unexpected text after the table");
-    }
+    while (in.nextLine())
+      if (in.line().find_first_not_of(" \t\r") != std::string::npos) return fail("unexpected text after the table");
   }
   for (double v : t.t_) t.logT_.push_back(std::log(v));
   for (double v : t.theta_) t.logTheta_.push_back(std::log(v));
@@ -748,35 +691,9 @@ Result<MultipleScatteringTable> MultipleScatteringTable::blend(const MultipleSca
 }
 
 namespace detail {
-struct EmbeddedTable {
-  const char* name;
-  const char* text;
-};
 extern const EmbeddedTable kEmbeddedMultipleScatteringTables[];
 extern const std::size_t kEmbeddedMultipleScatteringTableCount;
 }  // namespace detail
-
-namespace {
-
-std::shared_ptr<const MultipleScatteringTable> embedded(const std::string& name) {
-  // Parsed on first use and kept (a few hundred KB each).
-  static std::mutex mutex;
-  static std::map<std::string, std::shared_ptr<const MultipleScatteringTable>> parsed;
-  std::lock_guard lock(mutex);
-  if (auto it = parsed.find(name); it != parsed.end()) return it->second;
-  for (std::size_t i = 0; i < detail::kEmbeddedMultipleScatteringTableCount; ++i) {
-    const auto& e = detail::kEmbeddedMultipleScatteringTables[i];
-    if (name != e.name) continue;
-    auto t = MultipleScatteringTable::parse(e.text, std::string("config/multiple_scattering/") + e.name + ".msc");
-    auto sp = t ? std::make_shared<const MultipleScatteringTable>(std::move(*t)) : nullptr;
-    parsed[name] = sp;
-    return sp;
-  }
-  parsed[name] = nullptr;
-  return nullptr;
-}
-
-}  // namespace
 
 std::vector<std::string> shippedMultipleScatteringTableNames() {
   std::vector<std::string> names;
@@ -786,34 +703,9 @@ std::vector<std::string> shippedMultipleScatteringTableNames() {
 }
 
 std::shared_ptr<const MultipleScatteringTable> shippedMultipleScatteringTable(const Phase& phase) {
-  if (const auto* hg = std::get_if<HenyeyGreensteinPhase>(&phase)) {
-    // Shipped g nodes; between two, blend (cached per g).
-    static constexpr std::array<double, 4> kG{0.75, 0.80, 0.85, 0.90};
-    const double g = hg->g;
-    if (!(g >= kG.front() - 1e-9 && g <= kG.back() + 1e-9)) return nullptr;
-    std::size_t i = 0;
-    while (i + 2 < kG.size() && g > kG[i + 1]) ++i;
-    const double w = std::clamp((g - kG[i]) / (kG[i + 1] - kG[i]), 0.0, 1.0);
-    if (w < 1e-9) return embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i]}));
-    if (w > 1.0 - 1e-9) return embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i + 1]}));
-    auto a = embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i]}));
-    auto b = embedded(multipleScatteringTableName(HenyeyGreensteinPhase{kG[i + 1]}));
-    if (!a || !b) return nullptr;
-    static std::mutex mutex;
-    static std::map<double, std::shared_ptr<const MultipleScatteringTable>> blended;
-    std::lock_guard lock(mutex);
-    if (auto it = blended.find(g); it != blended.end()) return it->second;
-    auto t = MultipleScatteringTable::blend(*a, *b, w, phase);
-    auto sp = t ? std::make_shared<const MultipleScatteringTable>(std::move(*t)) : nullptr;
-    if (blended.size() > 64) blended.clear();  // a g that changes every frame must not grow it
-    blended[g] = sp;
-    return sp;
-  }
-  if (std::holds_alternative<FogMiePhase>(phase)) {
-    auto t = embedded(multipleScatteringTableName(phase));
-    return t && phaseIdentity(t->phase()) == phaseIdentity(phase) ? t : nullptr;
-  }
-  return nullptr;
+  return detail::shippedTable<MultipleScatteringTable>(phase, detail::kEmbeddedMultipleScatteringTables,
+                                                       detail::kEmbeddedMultipleScatteringTableCount, ".msc",
+                                                       multipleScatteringTableName);
 }
 
 }  // namespace fogbeam

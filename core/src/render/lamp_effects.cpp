@@ -1,6 +1,7 @@
 #include <fogbeam/render/lamp_effects.hpp>
 
 #include <fogbeam/physics/glow.hpp>
+#include <fogbeam/physics/ground_correction.hpp>
 #include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
 
@@ -531,6 +532,9 @@ struct LampEffects::Tables {
   std::shared_ptr<const kernels::IsoTable> iso;  // single scattering of the glow's isotropic source
   // The glow's multiple-scattering table for the frame's phase (GlowModel::Table; nullptr: the APSF).
   std::shared_ptr<const MultipleScatteringTable> ms;
+  // The ground's factor on it for the frame's phase (GlowOptions::ground_reflectance ≥ 0; nullptr:
+  // none, or no shipped factor for this phase: the glow of infinite fog).
+  std::shared_ptr<const GroundCorrectionTable> ground;
   PhaseIdentity msPhase{};
   bool msLooked = false;
   std::vector<float> cieGlare;                   // CIE 146 L_v/E per node, (cd/m²)/lux
@@ -549,7 +553,7 @@ struct LampEffects::Tables {
   // so a lamp that keeps its distance in a steady fog reuses it (steady frames allocate nothing).
   struct CurveCache {
     bool valid = false, ok = false;
-    double R = 0.0, kt = 0.0, albedo = 0.0;
+    double R = 0.0, kt = 0.0, albedo = 0.0, groundH = 0.0;
     PhaseIdentity phase{};
     bool fromTable = false;
     double scale = 0.0, single_flux = 0.0, multiple_flux = 0.0;
@@ -837,6 +841,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   if (glow_.enabled) t.iso = kernels::IsoTable::get(fog.phase);
   if (glow_.enabled && glow_.model == GlowModel::Table && !(t.msLooked && t.msPhase == phaseIdentity(fog.phase))) {
     t.ms = shippedMultipleScatteringTable(fog.phase);
+    t.ground = glow_.ground_reflectance >= 0.0 ? shippedGroundCorrection(fog.phase) : nullptr;
     t.msPhase = phaseIdentity(fog.phase);
     t.msLooked = true;
   }
@@ -938,14 +943,32 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
     if (glow_.enabled && glows) {
       Tables::CurveCache& cc = t.curves[li];
       const PhaseIdentity phaseId = phaseIdentity(fog.phase);
-      if (!(cc.valid && cc.R == R && cc.kt == kt && cc.albedo == fog.albedo && cc.phase == phaseId &&
+      // The ground factor's optical height: the eye's and the lamp's mean over the ground (0: none).
+      const double groundH = t.ground && !own
+                                 ? kt * std::max(0.5 * ((cam.position_m.z - glow_.ground_height_m) +
+                                                        (lamp.position_m.z - glow_.ground_height_m)),
+                                                 0.0)
+                                 : 0.0;
+      if (!(cc.valid && cc.R == R && cc.kt == kt && cc.groundH == groundH && cc.albedo == fog.albedo && cc.phase == phaseId &&
             cc.fromTable == fromTable)) {
         if (fromTable) t.tabulateFlux();
         auto curve = fromTable ? glowCurveFromTable(*t.ms, *t.iso, fog, R, kNodes, false) : glowCurve(*t.iso, fog, R, kNodes);
         if (curve && fromTable) curve->single_flux = fog.albedo * t.singleFlux(kt * R);
+        if (curve && fromTable && t.ground && !own) {
+          // The ground (GlowOptions::ground_reflectance): the path tracer's factor on the tables'
+          // light at this optical distance, angle by angle; the report's flux follows it. Not
+          // the driver's own lamps: at K_t R ~ 0.1 the factor is 1 (GroundCorrectionTable::factor).
+          thread_local std::vector<double> groundFactor;
+          groundFactor.resize(curve->glow.size());
+          t.ground->factors(kt * R, glow_.ground_reflectance, groundH, curve->theta.data(), curve->theta.size(),
+                            groundFactor.data());
+          for (std::size_t i = 0; i < curve->glow.size(); ++i) curve->glow[i] *= groundFactor[i];
+          curve->multiple_flux = R * R * fluxOver(curve->theta, curve->glow);
+        }
         cc.valid = true;
         cc.R = R;
         cc.kt = kt;
+        cc.groundH = groundH;
         cc.albedo = fog.albedo;
         cc.phase = phaseId;
         cc.fromTable = fromTable;

@@ -286,6 +286,9 @@ constexpr std::array kGlowKeys{
     KeySpec{"model"},
     KeySpec{"fade_in"},
     KeySpec{"surfaces"},
+    KeySpec{"ground"},
+    KeySpec{"ground_reflectance"},
+    KeySpec{"ground_height_m"},
 };
 constexpr std::array kGlareKeys{
     KeySpec{"enabled"},
@@ -340,6 +343,13 @@ GlowOptions parseGlow(const Section& s, const GlowOptions& fallback) {
   g.model = s.choice("model", kGlowModels, toString(g.model)) == "apsf" ? GlowModel::Apsf : GlowModel::Table;
   g.fade_in = s.number("fade_in", Range{Apsf::minOpticalDistance(), kInf, false, false}, g.fade_in);
   g.surfaces = s.boolean("surfaces", g.surfaces);
+  // The ground under the lamps (ground_correction.hpp): on with the fallback's reflectance (or
+  // 0.1, dry asphalt, where the fallback has none) unless `ground = false`.
+  const bool ground = s.boolean("ground", fallback.ground_reflectance >= 0.0);
+  const double rho = s.number("ground_reflectance", Range{0.0, 0.95, false, false},
+                              fallback.ground_reflectance >= 0.0 ? fallback.ground_reflectance : 0.1);
+  g.ground_reflectance = ground ? rho : -1.0;
+  g.ground_height_m = s.number("ground_height_m", Range{-1e4, 1e4, false, false}, fallback.ground_height_m);
   return g;
 }
 

@@ -35,6 +35,16 @@ struct GlowOptions {
   /// every lamp's light, scattered onto the surfaces by the fog around them, added to the surface
   /// layer (CPU or GPU shading). Needs a multiple-scattering table for the fog's phase function.
   bool surfaces = true;
+  /// The ground under the lamps and the eye (model = table): its Lambertian reflectance ρ ∈ [0, 1),
+  /// or < 0 for none (infinite fog, the tables as they are). A dark road takes light that has
+  /// diffused down to it (a lamp at K_t R = 8: 0.4 of infinite fog's orders ≥ 2 with ρ = 0.1),
+  /// snow sends it back up; the glow is multiplied by the path tracer's factor for ρ
+  /// (fogbeam/physics/ground_correction.hpp, docs/airlight.md "The ground"). Not the fog light's.
+  double ground_reflectance = 0.1;
+  /// The ground's height, m: the plane z = ground_height_m of the scene's world frame (scene
+  /// files and the service's rig stand on z = 0). The factor follows the optical height of the
+  /// eye and each lamp above it (their mean).
+  double ground_height_m = 0.0;
 };
 
 /// The driver's disability glare: CIE 146:2002 veiling luminance of the lamps in view.
