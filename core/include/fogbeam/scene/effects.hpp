@@ -37,7 +37,7 @@ struct GlowOptions {
   bool surfaces = true;
   /// The ground under the lamps and the eye (model = table): its Lambertian reflectance ρ ∈ [0, 1),
   /// or < 0 for none (infinite fog, the tables as they are). A dark road takes light that has
-  /// diffused down to it (a lamp at K_t R = 8: 0.4 of infinite fog's orders ≥ 2 with ρ = 0.1),
+  /// diffused down to it (a lamp at K_t R = 8 over ρ = 0.1: 0.22–0.35 of infinite fog's light),
   /// snow sends it back up; the glow is multiplied by the path tracer's factor for ρ
   /// (fogbeam/physics/ground_correction.hpp, docs/airlight.md "The ground"). Not the fog light's.
   double ground_reflectance = 0.1;
