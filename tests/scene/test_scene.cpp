@@ -537,6 +537,22 @@ TEST(SceneEffects, EveryKeyIntoItsField) {
   EXPECT_FALSE(off.effects.glare.enabled);
 }
 
+// [glow] ground, ground_reflectance, ground_height_m (docs/scene.md): on with ρ 0.1 on z = 0 by
+// default; `ground = false` is infinite fog (ground_reflectance < 0 in GlowOptions); ρ in [0, 0.95].
+TEST(SceneEffects, TheGroundKeys) {
+  const Scene d = parse(kFogAndCamera + "[glow]\n");
+  EXPECT_DOUBLE_EQ(d.effects.glow.ground_reflectance, 0.1);
+  EXPECT_DOUBLE_EQ(d.effects.glow.ground_height_m, 0.0);
+  const Scene snow = parse(kFogAndCamera + "[glow]\nground_reflectance = 0.8\nground_height_m = -1.5\n");
+  EXPECT_DOUBLE_EQ(snow.effects.glow.ground_reflectance, 0.8);
+  EXPECT_DOUBLE_EQ(snow.effects.glow.ground_height_m, -1.5);
+  const Scene off = parse(kFogAndCamera + "[glow]\nground = false\nground_reflectance = 0.3\n");
+  EXPECT_LT(off.effects.glow.ground_reflectance, 0.0);
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[glow]\nground_reflectance = 0.99\n"),
+               "bad.toml:8: [glow] ground_reflectance");
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[glow]\nground = 1\n"), "bad.toml:8: [glow] ground");
+}
+
 TEST(SceneEffects, BadValuesSayWhereAndWhat) {
   EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[glow]\nfade_in = 0.5\n"), "bad.toml:8: [glow] fade_in");
   EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[glow]\nradius = 2\n"), "bad.toml:8: [glow]: unknown key 'radius'");
