@@ -32,6 +32,7 @@
 #include <ctime>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -538,11 +539,14 @@ json glowGlareStage(SizeRun& run) {
   StageStats glowStats, glareStats;
   std::vector<float> glowLayer, glareLayer;
   LampEffectsReport rep;
+  double veilBuildMs = 0.0;  // the road veil of the driver's lamps, made in the first frame
   for (int f = 0; f < run.o.frames; ++f) {
     fx->evaluate(run.scene, run.surface, glowLayer, glareLayer, rep);
     glowStats.ms.push_back(1e3 * rep.glow_seconds);
     glareStats.ms.push_back(1e3 * rep.glare_seconds);
+    veilBuildMs = std::max(veilBuildMs, 1e3 * rep.ground_veil_build_seconds);
   }
+  const bool veil = rep.ground_veil;
   double sumBase = 0.0, sumGlow = 0.0, sumGlare = 0.0;
   for (std::size_t k = 0; k < run.nPixels; ++k) {
     sumBase += luminance(&run.layers.composite[3 * k]);
@@ -601,6 +605,8 @@ json glowGlareStage(SizeRun& run) {
     }
   }
   return {{"glow", glowStats.toJson()},
+          {"ground_veil", veil},
+          {"ground_veil_build_ms", veilBuildMs},
           {"glow_dozen_lamps", dozenStats.toJson()},
           {"glow_dozen_lamps_infinite_fog", dozenInfStats.toJson()},
           {"lamps_glowing_in_dozen", dozen},
@@ -789,10 +795,15 @@ void printEffects(const json& e) {
     std::printf("  %-30s %s\n", "glow, glare", e["error"].get<std::string>().c_str());
     return;
   }
-  char note[200];
+  char note[320];
   std::snprintf(note, sizeof note, "  %d of %d lamps in view glow, and %d of the driver's; +%.1f %% of the frame's light",
                 e["lamps_with_glow"].get<int>(), e["lamps_in_view"].get<int>(), e.value("own_lamps_with_glow", 0),
                 100.0 * e["glow_light_share"].get<double>());
+  if (e.value("ground_veil", false)) {
+    const std::size_t used = std::strlen(note);
+    std::snprintf(note + used, sizeof note - used, "; the road veil of the driver's lamps made in %.1f ms (first frame)",
+                  e.value("ground_veil_build_ms", 0.0));
+  }
   printStage("glow", e["glow"], note);
   if (e.contains("glow_dozen_lamps") && e["glow_dozen_lamps"]["frames"].get<std::size_t>() > 0) {
     std::snprintf(note, sizeof note, "  12 lamps, %d glowing (the rest hidden), all moving: curves anew each frame",

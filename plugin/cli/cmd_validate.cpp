@@ -272,6 +272,7 @@ bool validatePathTracer(int samples, const std::string& csvPath, const std::stri
       ownRoad.ground_below_m = 1.2;
       ownRoad.ground_reflectance = 0.1;
       ownRoad.lamp_above_eye_m = -0.55;
+      ownRoad.own = true;
       cases.push_back(ownRoad);
     }
   }

@@ -106,6 +106,9 @@ struct RingComparisonCase {
   /// The lamp this far above the eye's height (a street lamp's head: 8 m over the road for an eye
   /// 1.2 m above it is 6.8), still R = T / K_t from the eye; the rings are about its direction.
   double lamp_above_eye_m = 0.0;
+  /// The lamp is the driver's own (mount = vehicle: LampEffects' own-lamp glow, and the veil of
+  /// the road it lights when the case has a ground).
+  bool own = false;
   /// Whether fogbeam's glow knows the ground (GlowOptions::ground_reflectance); false: the glow of
   /// infinite fog over the same ground, to show what the ground factor changes.
   bool glow_knows_ground = true;
@@ -168,6 +171,7 @@ inline Result<Scene> comparisonScene(const RingComparisonCase& c, int pixels, Su
   const double rise = std::clamp(c.lamp_above_eye_m / distance_m, -1.0, 1.0);
   lamp.lamp.position_m = distance_m * Vec3(std::sqrt(1.0 - rise * rise), 0.0, rise);
   lamp.lamp.worldFromLamp = worldFromAxis(c.lamp_axis);
+  if (c.own) lamp.mount = LampMount::Vehicle;
   if (c.profile) {
     lamp.lamp.profile = c.profile;
   } else {

@@ -181,9 +181,12 @@ TEST(ChannelRendererEffects, TableGlowPeaksAtTheLampAndFallsAwayFromIt) {
   EXPECT_GT(left, 0.0);
   EXPECT_GT(right, 0.0);
   EXPECT_GT(atLamp, 2.0 * std::max(left, right));
-  // The road a few metres ahead is nearer than half the street lamp's distance: none of its glow,
-  // only the driver's own low beams' (weight K_t d / 2 there, LampEffects).
-  EXPECT_LT(at(f.layers.glow, kWidth / 2, kHeight - 1), 1e-3 * atLamp);
+  // The road a few metres ahead is nearer than half the street lamp's distance: none of its glow
+  // (with the driver's low beams off: theirs and the veil of the road they light are there).
+  RenderedFrame dark;
+  ASSERT_TRUE((*r)->render(stateAt(-40.0, 0), ipc::Clock::now(), true, dark));
+  EXPECT_LT(at(dark.layers.glow, kWidth / 2, kHeight - 1), 1e-3 * atLamp);
+  EXPECT_GT(at(f.layers.glow, kWidth / 2, kHeight - 1), at(dark.layers.glow, kWidth / 2, kHeight - 1));
   std::printf("  street lamp at %.1f m (K_t R %.2f): table glow at its pixel %.3e cd/m2, 20 px left %.3e, right %.3e\n",
               lamp->distance_m, lamp->optical_distance, atLamp, left, right);
   RenderedFrame near;

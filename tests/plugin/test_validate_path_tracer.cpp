@@ -138,12 +138,12 @@ TEST(ValidatePathTracer, TheGlowKnowsTheGround) {
 // What the ground does to the driver's own low beam (docs/airlight.md, "The ground": the own low
 // beam over the road). The path tracer: a road of ρ = 0.1 adds light in the rings 4–16° against a
 // black one (the beam reaches the road at grazing incidence 5–40 m ahead, the road sends part of
-// it back and the fog scatters it into the view). fogbeam has no source for that light (its
-// airlight and glow start at the lamps): its figures are the same over both roads, and over the
-// road of ρ = 0.1 it falls short of the path tracer there, as docs/airlight.md says (0.72 at
-// 8–16° with 200 000 paths, the built-in model of this file). When the lit road becomes a source of the veil, the last check is
-// the one to turn around.
-TEST(ValidatePathTracer, TheOwnBeamsLitRoadAddsAVeilFogbeamLeavesOut) {
+// it back and the fog scatters it into the view). fogbeam's glow layer holds that veil too
+// (LampEffects: the road lit by the own lamps, single-scattered), so its figures rise with the
+// road's ρ, and over both roads single + glow is within 15 % (+ 3σ) of the path tracer in every
+// ring (200 000 paths: 0.99, 0.99, 0.97, 0.94, 0.85 over the road, 0.72–0.98 without the veil
+// and with the own lamps' earlier occlusion ramp; 0.96–1.01 over the black road).
+TEST(ValidatePathTracer, TheOwnBeamsLitRoadVeilsTheView) {
   auto pool = std::make_shared<ThreadPool>(2);
   RingComparisonCase road{"own low beam over the road", HenyeyGreensteinPhase{0.85}, 0.12};
   auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");  // the shipped low beam
@@ -153,6 +153,7 @@ TEST(ValidatePathTracer, TheOwnBeamsLitRoadAddsAVeilFogbeamLeavesOut) {
   road.ground_below_m = 1.2;
   road.ground_reflectance = 0.1;
   road.lamp_above_eye_m = -0.55;
+  road.own = true;
   RingComparisonCase black = road;
   black.ground_reflectance = 0.0;
   // 20 000 paths also under the sanitizers (~2 s here): a quarter would not separate the roads at 3σ.
@@ -165,15 +166,16 @@ TEST(ValidatePathTracer, TheOwnBeamsLitRoadAddsAVeilFogbeamLeavesOut) {
     const RingFigures& a = lit->rings[k];
     const RingFigures& b = dark->rings[k];
     std::printf("  ring %4.1f-%4.1f: path tracer %.4g +- %.2g (black road %.4g +- %.2g); fogbeam %.4g (%.4g); ratio %.3f "
-                "+- %.3f (%.3f)\n",
+                "+- %.3f (%.3f +- %.3f)\n",
                 a.lo_deg, a.hi_deg, a.pt_all.mean, a.pt_all.std_error, b.pt_all.mean, b.pt_all.std_error,
-                a.single + a.glow, b.single + b.glow, a.ratio(), a.ratioError(), b.ratio());
-    // fogbeam's layers do not see the road's reflectance (the glow's ground factor starts at K_t R = 0.5).
-    EXPECT_NEAR(a.single + a.glow, b.single + b.glow, 1e-9 * (b.single + b.glow)) << a.lo_deg;
-    if (!(a.lo_deg >= 4.0) || !std::isfinite(a.hi_deg)) continue;
+                a.single + a.glow, b.single + b.glow, a.ratio(), a.ratioError(), b.ratio(), b.ratioError());
+    if (!std::isfinite(a.hi_deg)) continue;  // the frame: its paths spread over 0.5–24°
+    for (const RingFigures* f : {&a, &b})
+      EXPECT_LT(std::abs(f->ratio() - 1.0), 0.15 + 3.0 * f->ratioError()) << "ring " << a.lo_deg;
+    if (!(a.lo_deg >= 4.0)) continue;
     const double se = std::hypot(a.pt_all.std_error, b.pt_all.std_error);
     EXPECT_GT(a.pt_all.mean - b.pt_all.mean, 3.0 * se) << "the lit road adds light, ring " << a.lo_deg;
-    EXPECT_LT(a.ratio() + 3.0 * a.ratioError(), 1.0) << "fogbeam leaves it out, ring " << a.lo_deg;
+    EXPECT_GT(a.glow, 1.2 * b.glow) << "fogbeam's veil, ring " << a.lo_deg;
   }
 }
 

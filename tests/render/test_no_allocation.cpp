@@ -113,6 +113,14 @@ TEST(NoAllocation, SteadyGlowAndGlareFramesDoNotAllocate) {
   a.lamp.position_m = {70.0, -3.0, 8.0};  // T ≈ 2.1: it glows
   a.lamp.profile = makeProfile(IsotropicProfile{4000.0}).value();
   s.lamps.push_back(a);
+  // The driver's own low beam over the road: its glow and the veil of the road it lights (kept).
+  s.camera.position_m = {0.0, 0.0, 1.2};
+  a.name = "own low beam";
+  a.mount = LampMount::Vehicle;
+  a.lamp.position_m = {2.0, 0.6, 0.65};
+  a.lamp.worldFromLamp = Mat3(1.0);
+  a.lamp.profile = *low;
+  s.lamps.push_back(a);
   s.planes.push_back(Plane{{0, 0, 0}, {0, 0, 1}, 0.15});
   SurfaceBuffers surf;
   renderSurfacesCpu(s, surf);
@@ -130,7 +138,8 @@ TEST(NoAllocation, SteadyGlowAndGlareFramesDoNotAllocate) {
   fx->evaluate(s, surf, glowLayer, glareLayer, rep);
   counting = false;
   EXPECT_EQ(allocations.load(), 0) << "heap allocations during a steady glow and glare frame";
-  ASSERT_EQ(rep.lamps.size(), 2u);
+  ASSERT_EQ(rep.lamps.size(), 3u);
+  EXPECT_TRUE(rep.ground_veil);
   EXPECT_TRUE(rep.lamps[1].glow_from_table);
   EXPECT_GT(rep.lamps[1].glow_peak_cd_m2, 0.0);
 }

@@ -68,6 +68,7 @@ void RadialRow(const KernelLamp& L, float f, float cx, float cy, float x0, float
 
 void FillRow(const LayerRow& R) {
   const DF d;
+  const DI di;
   const int N = static_cast<int>(hn::Lanes(d));
   const int r = R.j / kCell;
   const float v = static_cast<float>(R.j - r * kCell) / kCell;  // row weight inside the cell
@@ -156,6 +157,39 @@ void FillRow(const LayerRow& R) {
           const VF wv = hn::Mul(w, val);
           for (int ch = 0; ch < 3; ++ch) acc[ch] = hn::MulAdd(hn::Set(d, L.color[ch]), wv, acc[ch]);
         }
+      }
+      if (R.veil_line != nullptr && dist != nullptr) {
+        // The road veil (LayerRow): the same float arithmetic as LampEffects' addVeil.
+        const VF fx = hn::Mul(x, hn::Set(d, static_cast<float>(R.veil_nx - 1) / static_cast<float>(R.width)));
+        const auto ix = hn::Min(hn::ConvertTo(di, fx), hn::Set(di, R.veil_nx - 2));  // fx ≥ 0: truncation = floor
+        const VF tx = hn::Sub(fx, hn::ConvertTo(d, ix));
+        // Nodes are ~36 px apart at 1280 × 720: most vectors lie between two of them (no gather).
+        // ix ascends over the lanes: its first and last, in the lanes' own float arithmetic.
+        const float sx = static_cast<float>(R.veil_nx - 1) / static_cast<float>(R.width);
+        const int ixLo = std::min(static_cast<int>((static_cast<float>(i0 + k0) + 0.5f) * sx), R.veil_nx - 2);
+        const int ixHi =
+            std::min(static_cast<int>((static_cast<float>(N - 1) + static_cast<float>(i0 + k0) + 0.5f) * sx), R.veil_nx - 2);
+        VF v0, v1;
+        if (ixLo == ixHi) {
+          v0 = hn::Set(d, R.veil_line[ixLo]);
+          v1 = hn::Set(d, R.veil_line[ixLo + 1]);
+        } else {
+          v0 = hn::GatherIndex(d, R.veil_line, ix);
+          v1 = hn::GatherIndex(d, R.veil_line + 1, ix);
+        }
+        const VF val = hn::Add(v0, hn::Mul(tx, hn::Sub(v1, v0)));
+        const VF rampD = hn::Min(one, hn::Mul(hn::Set(d, R.veil_hk), hn::LoadU(d, dist + k0)));
+        VF wv = val;  // surfaces at least 2 / K_t away (and the sky): weight 1, whatever rampU ≤ 1 is
+        if (!hn::AllTrue(d, hn::Ge(rampD, one))) {
+          const VF a = hn::Sub(hn::Set(d, R.cx), x);
+          const float bb = R.cy - y;
+          const VF num = hn::Add(hn::Set(d, R.veil_zf + R.veil_zu * bb), hn::Mul(hn::Set(d, R.veil_zl), a));
+          const VF len = hn::Sqrt(hn::Add(hn::Set(d, R.f * R.f + bb * bb), hn::Mul(a, a)));
+          const VF rampU = hn::Min(one, hn::Div(hn::Mul(hn::Set(d, R.veil_hkh), len),
+                                                hn::Max(hn::Neg(num), hn::Set(d, 1e-12f))));
+          wv = hn::Mul(hn::Min(one, hn::Div(rampD, hn::Max(rampU, hn::Set(d, 1e-3f)))), val);
+        }
+        for (int ch = 0; ch < 3; ++ch) acc[ch] = hn::Add(acc[ch], hn::Mul(wv, hn::Set(d, R.veil_color[ch])));
       }
       if (k0 + N <= m) {
         hn::StoreInterleaved3(acc[0], acc[1], acc[2], d, R.out + 3 * (i0 + k0));

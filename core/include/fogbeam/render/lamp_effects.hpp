@@ -40,7 +40,9 @@
 // Lamps with mount = "vehicle" (the driver's own) have no glare (the bonnet and their housings
 // keep their direct light from the eye) and glow only from the tables (GlowModel::Table): their
 // multiply scattered light fills the fog ahead; never hidden, light forward of the lamp only,
-// occlusion weight a ramp over 0 … 2/K_t (docs/airlight.md, "Glow").
+// occlusion weight that of any lamp (docs/airlight.md, "Glow"); over a ground of ρ > 0
+// (GlowOptions) the veil of the road they light is added to the glow layer (single scattering of
+// the road's light, core/src/render/ground_veil.hpp; docs/airlight.md "The ground").
 //
 // How the layers are filled (docs/airlight.md, "Cost of glow and glare"). Both are Σ over lamps
 // of colour × weight × F_i(θ_i), F_i a 512-node radial table over √sin(θ/2) (the glow curve ×
@@ -104,6 +106,11 @@ struct LampEffectsReport {
   double eye_illuminance_lx = 0.0;        ///< Σ over visible lamps
   double veiling_luminance_cd_m2 = 0.0;   ///< glare at the image centre
   double glow_seconds = 0.0, glare_seconds = 0.0;
+  /// The glow layer holds the veil of the road lit by the driver's own lamps (a ground of ρ > 0,
+  /// the tables' glow, an own lamp on; docs/airlight.md "The ground").
+  bool ground_veil = false;
+  /// Of glow_seconds: making the veil anew this frame (0 when kept from an earlier frame).
+  double ground_veil_build_seconds = 0.0;
 };
 
 /// The glow of an isotropic source of 1 cd at distance R in `fog` (header comment), on the
@@ -273,6 +280,15 @@ struct LayerRow {
   float f = 1.0f, cx = 0.0f, cy = 0.0f;  ///< focal length and principal point, pixels
   const float* distance = nullptr;       ///< row j's surface distances (glow), nullptr: weights 1
   float* out = nullptr;                  ///< row j, 3 floats per pixel
+  /// The veil of the road the driver's own lamps light (glow; nullptr: none): its nodes blended at
+  /// row j's y, `veil_nx` of them evenly over the row, added per pixel as
+  /// colour × val × min(1, min(1, hk d) / max(rampU, 10⁻³)), rampU = min(1, hkh |r| / max(−r_z, 10⁻¹²))
+  /// with r = (f, cx − x, cy − y) in the camera frame and r_z = zf + zu (cy − y) + zl (cx − x)
+  /// its world z (LampEffects' addVeil, the exact path's, in the same float arithmetic).
+  const float* veil_line = nullptr;
+  int veil_nx = 0;
+  float veil_color[3] = {0, 0, 0};
+  float veil_zf = 0.0f, veil_zl = 0.0f, veil_zu = 0.0f, veil_hk = 0.0f, veil_hkh = 0.0f;
 };
 
 /// The lamp's table at the `count` points (x0 + k dx, y), pixel-centre coordinates.

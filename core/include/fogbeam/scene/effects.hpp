@@ -40,6 +40,8 @@ struct GlowOptions {
   /// diffused down to it (a lamp at K_t R = 8 over ρ = 0.1: 0.22–0.35 of infinite fog's light),
   /// snow sends it back up; the glow is multiplied by the path tracer's factor for ρ
   /// (fogbeam/physics/ground_correction.hpp, docs/airlight.md "The ground"). Not the fog light's.
+  /// Above 0, the glow layer also holds the veil of the road the driver's own lamps light (their
+  /// light reflected by the road, scattered by the fog: LampEffects, docs/physics.md).
   double ground_reflectance = 0.1;
   /// The ground's height, m: the plane z = ground_height_m of the scene's world frame (scene
   /// files and the service's rig stand on z = 0). The factor follows the optical height of the
