@@ -262,17 +262,10 @@ bool validatePathTracer(int samples, const std::string& csvPath, const std::stri
     street.lamp_above_eye_m = 6.8;
     cases.push_back(street);
     if (lowBeam) {
-      // The driver's own low beam over the road: the lamp 0.65 m over it, 2 m ahead of an eye
-      // 1.2 m over it (K_t R = 0.12 in 50 m fog), its beam along the road: the road takes the
-      // beam's light at grazing incidence and absorbs 90 % of what reaches it.
-      RingComparisonCase ownRoad{"own low beam over the road (rho 0.1), HG 0.85, K_t R = 0.12",
-                                 HenyeyGreensteinPhase{0.85}, 0.12};
-      ownRoad.profile = *lowBeam;
-      ownRoad.lamp_axis = Vec3(1, 0, 0);
-      ownRoad.ground_below_m = 1.2;
-      ownRoad.ground_reflectance = 0.1;
-      ownRoad.lamp_above_eye_m = -0.55;
-      ownRoad.own = true;
+      // The driver's own low beam over the road (ownLowBeamOverRoad): the road takes the beam's
+      // light at grazing incidence and absorbs 90 % of what reaches it.
+      const RingComparisonCase ownRoad =
+          ownLowBeamOverRoad("own low beam over the road (rho 0.1), HG 0.85, K_t R = 0.12", *lowBeam, 0.1);
       cases.push_back(ownRoad);
     }
   }

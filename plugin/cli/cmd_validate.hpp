@@ -114,6 +114,20 @@ struct RingComparisonCase {
   bool glow_knows_ground = true;
 };
 
+/// The driver's own low beam over the road: the lamp `profile` 0.65 m over a road of reflectance
+/// `rho`, 2 m ahead of an eye 1.2 m over it (K_t R = 0.12 in 50 m fog, HG 0.85), its beam along
+/// the road: the road takes the beam's light at grazing incidence and sends back ρ of it.
+inline RingComparisonCase ownLowBeamOverRoad(std::string name, std::shared_ptr<const Profile> profile, double rho) {
+  RingComparisonCase c{std::move(name), HenyeyGreensteinPhase{0.85}, 0.12};
+  c.profile = std::move(profile);
+  c.lamp_axis = Vec3(1, 0, 0);
+  c.ground_below_m = 1.2;
+  c.ground_reflectance = rho;
+  c.lamp_above_eye_m = -0.55;
+  c.own = true;
+  return c;
+}
+
 struct RingFigures {
   double lo_deg = 0.0, hi_deg = 0.0;  ///< hi = +inf: the frame
   std::size_t pixels = 0;

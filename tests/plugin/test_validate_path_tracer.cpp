@@ -145,15 +145,9 @@ TEST(ValidatePathTracer, TheGlowKnowsTheGround) {
 // and with the own lamps' earlier occlusion ramp; 0.96–1.01 over the black road).
 TEST(ValidatePathTracer, TheOwnBeamsLitRoadVeilsTheView) {
   auto pool = std::make_shared<ThreadPool>(2);
-  RingComparisonCase road{"own low beam over the road", HenyeyGreensteinPhase{0.85}, 0.12};
   auto beam = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");  // the shipped low beam
   ASSERT_TRUE(beam.has_value()) << beam.error().message;
-  road.profile = *beam;
-  road.lamp_axis = Vec3(1, 0, 0);
-  road.ground_below_m = 1.2;
-  road.ground_reflectance = 0.1;
-  road.lamp_above_eye_m = -0.55;
-  road.own = true;
+  const RingComparisonCase road = ownLowBeamOverRoad("own low beam over the road", *beam, 0.1);
   RingComparisonCase black = road;
   black.ground_reflectance = 0.0;
   // 20 000 paths also under the sanitizers (~2 s here): a quarter would not separate the roads at 3σ.

@@ -9,8 +9,10 @@ Asserts:
     10 by at most RSS_BOUND_KIB (a leak of 1 KiB per second would exceed 1 MiB in 100 s);
   * no frame missed: every slot read every ~2 ms, every frame number from the first seen to the
     last is seen; a gap is allowed only where this reader itself did not poll for more than two
-    frame periods (descheduled on a loaded machine: counted and printed, at most 1 per 10 000
-    frames), never between closer polls (FrameAuditor); the frame rate over the run is >= 50 fps (a
+    frame periods (descheduled on a loaded machine, as beside the sanitizer builds in CI: counted
+    and printed), and only as many frames as a paced writer published and overwrote in that gap,
+    never between closer polls (FrameAuditor); the reader's gaps may add up to at most 1 % of the
+    run (beyond that the run checked too little); the frame rate over the run is >= 50 fps (a
     frame the loop skips because it fell behind gets no number, so this bounds the skipped
     deadlines loosely: the machine is shared, a 10-min run beside three compile jobs measured
     53.7 fps; the frame pace itself is the timing suite's subject; the figures are printed);
@@ -99,7 +101,8 @@ try:
           f"{dict(sorted(traffic_counts.items()))}; light states {len(lights)}")
     assert auditor.torn == 0 and auditor.misplaced == 0, auditor.summary()
     assert auditor.missed_unexplained == 0, f"{missing} frames missed: {auditor.summary()}"
-    assert missing == auditor.missed_reader_stalled and missing <= len(frames) // 10000, auditor.summary()
+    assert missing == auditor.missed_reader_stalled, auditor.summary()
+    assert auditor.stalled_s <= 0.01 * span, f"the reader was descheduled for over 1 % of the run: {auditor.summary()}"
     assert fps >= 50.0, f"{fps:.2f} fps over the soak (60 Hz cab)"
     assert growth <= RSS_BOUND_KIB, f"resident memory grew {growth:.0f} KiB after the warm-up: {rss}"
     assert udp["applied"] == udp["datagrams"] and not udp["dropped"], udp

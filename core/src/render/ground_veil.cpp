@@ -87,8 +87,9 @@ double alongRay(const RoadMap& road, const Medium& fog, const Ground& ground, co
   if (road.empty() || !(kt > 0.0) || steps < 1 || angles < 1 || azimuths < 1 || !(height > 0.0)) return end;
   const double u0 = 0.05, u1 = std::min(end, 15.0 / kt);
   if (!(u1 > u0)) return end;
-  // The directions: angles ψ from w, log-spaced 0.2° … 180° (cell edges), × azimuths about w;
-  // each with its solid angle and the phase function at cos ψ (the same for every step).
+  // The directions: angles ψ from w (cell edges 0, 0.2° doubling to 12.8°, then equal steps to
+  // 180°) × azimuths about w, each with its solid angle and the phase function at cos ψ (the same
+  // for every step).
   const Vec3 a1 = glm::normalize(std::abs(w.z) < 0.9 ? glm::cross(w, Vec3(0, 0, 1)) : glm::cross(w, Vec3(1, 0, 0)));
   const Vec3 a2 = glm::cross(w, a1);
   struct Dir {
