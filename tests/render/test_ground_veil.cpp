@@ -6,12 +6,15 @@
 #include "test_media.hpp"
 
 #include <fogbeam/physics/profile.hpp>
+#include <fogbeam/render/fog_light.hpp>
 
 #include <boost/math/special_functions/expint.hpp>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <vector>
 
 namespace fogbeam {
 namespace {
@@ -89,6 +92,43 @@ TEST(GroundVeil, TheRoadMapIsTheLampsDirectLightReflected) {
   EXPECT_TRUE(ground_veil::roadMap({under}, fog, ground, eye).empty());
   EXPECT_TRUE(ground_veil::roadMap({}, fog, ground, eye).empty());
   EXPECT_TRUE(ground_veil::roadMap({lamp}, fog, ground_veil::Ground{0.1, 0.0}, eye).empty());
+}
+
+// With the surfaces' fog light (`[glow] surfaces`) the road's light is ρ (E_direct + E_fog) / π,
+// E_fog the fog light's model (fog_light.hpp) for the lamp and the road's normal: an isotropic
+// lamp's bins all hold its intensity. Near the lamp in thick fog the fog light is a large part of
+// the road's light (0.2–15× the direct light, docs/airlight.md); it never takes any away.
+TEST(GroundVeil, TheRoadMapHoldsTheFogLightTheSurfacesShow) {
+  const Medium fog = test::hgFog(0.05);
+  auto iso = makeProfile(IsotropicProfile{2000.0});
+  ASSERT_TRUE(iso.has_value());
+  auto table = FogLightTable::shipped(fog.phase, fog.albedo);
+  ASSERT_TRUE(table.has_value()) << table.error().message;
+  ground_veil::Lamp lamp;
+  lamp.position_m = Vec3(1.0, 0.5, 0.7);
+  lamp.profile = iso->get();
+  const ground_veil::Ground ground{0.1, 0.2};
+  const Vec3 eye(0.0, 0.0, 1.3);
+  const ground_veil::RoadMap direct = ground_veil::roadMap({lamp}, fog, ground, eye, 192, 360);
+  const ground_veil::RoadMap withFog = ground_veil::roadMap({lamp}, fog, ground, eye, 192, 360, nullptr, table->get());
+  ASSERT_FALSE(withFog.empty());
+  const std::vector<double> means((*table)->bins(), 2000.0);
+  double lo = 1e300, hi = 0.0;
+  for (const Vec3& x : {Vec3(6.0, 0.3, 0.1), Vec3(15.0, -4.0, 0.1), Vec3(-8.0, 2.0, 0.1), Vec3(40.0, 10.0, 0.1)}) {
+    const Vec3 d = lamp.position_m - x;
+    const double r = glm::length(d);
+    const double eDirect = 2000.0 * (0.6 / r) * std::exp(-0.05 * r) / (r * r);
+    const double eFog = 0.05 * 0.05 * (*table)->irradiance(0.05 * r, d.z / r, means.data());
+    ASSERT_GT(eFog, 0.0) << x.x;
+    double got[3], only[3];
+    withFog.at(x.x, x.y, got);
+    direct.at(x.x, x.y, only);
+    EXPECT_NEAR(got[0], 0.2 * (eDirect + eFog) / kPi, 0.01 * 0.2 * (eDirect + eFog) / kPi) << x.x;
+    EXPECT_NEAR(only[0], 0.2 * eDirect / kPi, 0.01 * 0.2 * eDirect / kPi) << x.x;
+    lo = std::min(lo, eFog / eDirect);
+    hi = std::max(hi, eFog / eDirect);
+  }
+  std::printf("  fog light / direct light on the road 6-40 m from a lamp 0.6 m above it (K_t 0.05 /m): %.2f-%.2f\n", lo, hi);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <fogbeam/physics/multiple_scattering.hpp>
 #include <fogbeam/physics/path_tracer.hpp>
 #include <fogbeam/physics/photometry_io.hpp>
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/render/frame.hpp>
 #include <fogbeam/render/lamp_effects.hpp>
 #include <fogbeam/util/thread_pool.hpp>
@@ -403,24 +404,50 @@ TEST(LampEffectsLayers, TheRoadLitByTheOwnLampsVeilsTheView) {
   gl.lampFromWorld = glm::transpose(own.lamp.worldFromLamp);
   gl.profile = own.lamp.profile.get();
   const ground_veil::Ground ground{0.0, 0.1};
-  const ground_veil::RoadMap map = ground_veil::roadMap({gl}, s.scene.fog, ground, s.scene.camera.position_m);
+  // The road's light as the surface layer shows it (`[glow] surfaces`, on by default): its direct
+  // light and the fog's scattered light on it (the same table and annulus means as that layer).
+  const ground_veil::RoadMap direct = ground_veil::roadMap({gl}, s.scene.fog, ground, s.scene.camera.position_m);
+  auto fogLight = FogLightTable::shipped(s.scene.fog.phase, s.scene.fog.albedo, pool.get());
+  ASSERT_TRUE(fogLight.has_value()) << fogLight.error().message;
+  gl.annuli = AnnulusMeanMap::shared(own.lamp.profile, (*fogLight)->edges(), true, pool.get());
+  const ground_veil::RoadMap map =
+      ground_veil::roadMap({gl}, s.scene.fog, ground, s.scene.camera.position_m, 96, 180, nullptr, fogLight->get());
+  // Without the surfaces' fog light the veil scatters the direct light alone.
+  GlowOptions roadDirect = road;
+  roadDirect.surfaces = false;
+  LampEffects fxDirect = LampEffects::build(s.scene, roadDirect, GlareOptions{}, pool).value();
+  std::vector<float> litDirect;
+  fxDirect.evaluate(s.scene, s.surface, litDirect, glare, rep);
+  EXPECT_TRUE(rep.ground_veil);
   int checked = 0;
-  double worst = 0.0;
+  double worst = 0.0, worstDirect = 0.0, gainLo = 1e300, gainHi = 0.0;
   for (int j = 2; j < h; j += 23)
     for (int i = 3; i < w; i += 97) {
       const std::size_t k = static_cast<std::size_t>(j * w + i);
-      double ref[3] = {0, 0, 0};
-      ground_veil::alongRay(map, s.scene.fog, ground, s.scene.camera.position_m,
-                            s.scene.camera.rayDirection(i + 0.5, j + 0.5), 60, ref, 24, 24);
-      double veil = 0.0;
-      for (std::size_t c = 0; c < 3; ++c) veil += static_cast<double>(lit[3 * k + c] - dark[3 * k + c]) / 3.0;
+      const Vec3 ray = s.scene.camera.rayDirection(i + 0.5, j + 0.5);
+      double ref[3] = {0, 0, 0}, refDirect[3] = {0, 0, 0};
+      ground_veil::alongRay(map, s.scene.fog, ground, s.scene.camera.position_m, ray, 60, ref, 24, 24);
+      ground_veil::alongRay(direct, s.scene.fog, ground, s.scene.camera.position_m, ray, 60, refDirect, 24, 24);
+      double veil = 0.0, veilDirect = 0.0;
+      for (std::size_t c = 0; c < 3; ++c) {
+        veil += static_cast<double>(lit[3 * k + c] - dark[3 * k + c]) / 3.0;
+        veilDirect += static_cast<double>(litDirect[3 * k + c] - dark[3 * k + c]) / 3.0;
+      }
       const double want = (ref[0] + ref[1] + ref[2]) / 3.0;
-      ASSERT_GT(want, 0.0) << i << "," << j;
+      const double wantDirect = (refDirect[0] + refDirect[1] + refDirect[2]) / 3.0;
+      ASSERT_GT(wantDirect, 0.0) << i << "," << j;
       worst = std::max(worst, std::abs(veil / want - 1.0));
+      worstDirect = std::max(worstDirect, std::abs(veilDirect / wantDirect - 1.0));
       EXPECT_NEAR(veil, want, 0.15 * want) << "pixel " << i << "," << j;
+      EXPECT_NEAR(veilDirect, wantDirect, 0.15 * wantDirect) << "pixel " << i << "," << j;
+      // The fog light adds to the road's light everywhere (it is never negative).
+      EXPECT_GT(want, wantDirect) << "pixel " << i << "," << j;
+      gainLo = std::min(gainLo, want / wantDirect);
+      gainHi = std::max(gainHi, want / wantDirect);
       ++checked;
     }
-  std::printf("  road veil against each pixel's own ray: %d pixels, worst %.3f\n", checked, worst);
+  std::printf("  road veil against each pixel's own ray: %d pixels, worst %.3f (direct light alone: %.3f); the fog "
+              "light on the road raises it %.2f-%.2fx\n", checked, worst, worstDirect, gainLo, gainHi);
   EXPECT_GT(checked, 40);
   // A wall 10 m away everywhere: the veil takes the ramp K_t d / 2 = 0.3 of its sky value (the
   // lamp's own glow, weight 1 beyond R, is the black road's).

@@ -15,7 +15,7 @@ constexpr double kTwoPi = 2.0 * kPi;
 }  // namespace
 
 RoadMap roadMap(const std::vector<Lamp>& lamps, const Medium& fog, const Ground& ground, const Vec3& eye, int rings,
-                int sectors, ThreadPool* pool) {
+                int sectors, ThreadPool* pool, const FogLightTable* fogLight) {
   RoadMap m;
   const double kt = fog.extinction_per_m;
   if (!(ground.reflectance > 0.0) || !(kt > 0.0) || lamps.empty() || rings < 2 || sectors < 1) return m;
@@ -25,7 +25,10 @@ RoadMap roadMap(const std::vector<Lamp>& lamps, const Medium& fog, const Ground&
   m.rings = rings;
   m.sectors = sectors;
   m.rgb.assign(static_cast<std::size_t>(rings) * static_cast<std::size_t>(sectors) * 3, 0.0f);
+  const std::size_t bins = fogLight != nullptr ? fogLight->bins() : 0;
   auto ring = [&](int a) {
+    // The fog light's inputs per lamp and node (one allocation per ring, made only when the veil is).
+    std::vector<double> means(bins), dipoles(3 * bins), dotN(bins);
     const double r = m.r0 * std::exp(a * m.logStep);
     for (int b = 0; b < sectors; ++b) {
       const double phi = b * kTwoPi / sectors;
@@ -36,8 +39,25 @@ RoadMap roadMap(const std::vector<Lamp>& lamps, const Medium& fog, const Ground&
         if (!(h > 0.0) || l.profile == nullptr) continue;  // a lamp on or below the road lights none of it
         const Vec3 d = x - l.position_m;
         const double dist = glm::length(d);
-        const double lux = l.profile->intensity(l.lampFromWorld * (d / dist)) * (h / dist) * std::exp(-kt * dist) /
-                           (dist * dist);
+        const Vec3 wl = l.lampFromWorld * (d / dist);  // lamp → road point, lamp frame
+        const double intensity = l.profile->intensity(wl);
+        double lux = intensity * (h / dist) * std::exp(-kt * dist) / (dist * dist);
+        if (fogLight != nullptr) {
+          // The fog's scattered light on the road as the surface layer shows it (fog_light.hpp:
+          // E = K_t² Σ_k Ī_k e_k(K_t R, μ) with the harmonics' part along the normal; μ the cosine
+          // of the lamp's direction from the road's normal). A lamp without annulus means is
+          // isotropic: every bin's mean is its intensity.
+          if (l.annuli != nullptr) {
+            l.annuli->lookup(wl, means.data(), dipoles.data());
+            const Vec3 n = l.lampFromWorld * Vec3(0.0, 0.0, 1.0);
+            for (std::size_t k = 0; k < bins; ++k)
+              dotN[k] = dipoles[3 * k] * n.x + dipoles[3 * k + 1] * n.y + dipoles[3 * k + 2] * n.z;
+          } else {
+            std::fill(means.begin(), means.end(), intensity);
+            std::fill(dotN.begin(), dotN.end(), 0.0);
+          }
+          lux += kt * kt * fogLight->irradiance(kt * dist, h / dist, means.data(), dotN.data());
+        }
         for (int k = 0; k < 3; ++k) e[k] += l.color[k] * lux;
       }
       float* out = m.rgb.data() + (static_cast<std::size_t>(a) * static_cast<std::size_t>(sectors) +

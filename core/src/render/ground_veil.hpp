@@ -18,17 +18,20 @@
 // make singular. The directions are a polar grid about ω itself (angles 0.2° doubling to 12.8°,
 // then equal steps to 180°, × azimuths), dense where the phase function's forward peak is: for
 // a ray that meets the road, the road about where it meets it. L_r = ρ E / π, E = Σ_lamps I(x − S) cos i
-// e^{−K_t |x − S|} / |x − S|² the lamps' direct light, from a polar map about the eye's foot
-// (log-spaced radii, bilinear). Left out: the fog's scattered light on the road (the fog light)
-// and the orders ≥ 2 of the road's light (docs/airlight.md: what the path tracer says they add).
+// e^{−K_t |x − S|} / |x − S|² the lamps' direct light, plus (when the surface layer shows it) the
+// fog's scattered light on the road (the fog light, fog_light.hpp), from a polar map about the
+// eye's foot (log-spaced radii, bilinear). Left out: the orders ≥ 2 of the road's light
+// (docs/airlight.md: what the path tracer says they add).
 //
 // Units: metres, cd, lux, cd/m² per channel (lamp colour). Reentrant (no shared state).
 #pragma once
 
 #include <fogbeam/physics/airlight.hpp>
 #include <fogbeam/physics/medium.hpp>
+#include <fogbeam/render/fog_light.hpp>
 #include <fogbeam/util/thread_pool.hpp>
 
+#include <memory>
 #include <vector>
 
 namespace fogbeam::ground_veil {
@@ -38,6 +41,9 @@ struct Lamp {
   Mat3 lampFromWorld{1.0};
   const Profile* profile = nullptr;
   double color[3] = {1.0, 1.0, 1.0};
+  /// The profile's annulus means for the fog light (render/fog_light.hpp; null: the road's
+  /// direct light alone).
+  std::shared_ptr<const AnnulusMeanMap> annuli;
 };
 
 /// The road plane z = z_m (world), Lambertian of reflectance ρ.
@@ -58,8 +64,11 @@ struct RoadMap {
   void at(double x, double y, double out[3]) const noexcept;
 };
 /// `pool` (optional): its rings on the pool (a profile look-up per lamp and node: ~17 000 nodes).
+/// `fogLight` (optional): the road's light also holds the fog's scattered light on it (the
+/// surface layer's fog light, FogLightTable with each lamp's `annuli`).
 [[nodiscard]] RoadMap roadMap(const std::vector<Lamp>& lamps, const Medium& fog, const Ground& ground, const Vec3& eye,
-                              int rings = 96, int sectors = 180, ThreadPool* pool = nullptr);
+                              int rings = 96, int sectors = 180, ThreadPool* pool = nullptr,
+                              const FogLightTable* fogLight = nullptr);
 
 /// L_v (cd/m² per channel, added to rgb[0..3)) along the ray from `eye` in unit direction `w`:
 /// `steps` log-spaced steps from 5 cm (half of them log-spaced towards the road's end when the ray

@@ -34,6 +34,8 @@ struct GlowOptions {
   /// The fog's scattered light on the surfaces (fogbeam/render/fog_light.hpp): orders 1 and up of
   /// every lamp's light, scattered onto the surfaces by the fog around them, added to the surface
   /// layer (CPU or GPU shading). Needs a multiple-scattering table for the fog's phase function.
+  /// Also the road's fog light in the veil of the road the driver's own lamps light
+  /// (ground_reflectance > 0; off: that veil scatters the road's direct light alone).
   bool surfaces = true;
   /// The ground under the lamps and the eye (model = table): its Lambertian reflectance ρ ∈ [0, 1),
   /// or < 0 for none (infinite fog, the tables as they are). A dark road takes light that has
@@ -41,7 +43,8 @@ struct GlowOptions {
   /// snow sends it back up; the glow is multiplied by the path tracer's factor for ρ
   /// (fogbeam/physics/ground_correction.hpp, docs/airlight.md "The ground"). Not the fog light's.
   /// Above 0, the glow layer also holds the veil of the road the driver's own lamps light (their
-  /// light reflected by the road, scattered by the fog: LampEffects, docs/physics.md).
+  /// light, direct and, with `surfaces`, scattered onto the road by the fog, reflected by the
+  /// road and scattered by the fog into the view: LampEffects, docs/physics.md).
   double ground_reflectance = 0.1;
   /// The ground's height, m: the plane z = ground_height_m of the scene's world frame (scene
   /// files and the service's rig stand on z = 0). The factor follows the optical height of the
