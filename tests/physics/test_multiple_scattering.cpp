@@ -184,7 +184,7 @@ std::optional<RadianceEstimate> alongZ(const Lamp& lamp, double kt, const Phase&
   auto pt = PathTracer::build({lamp}, m);
   if (!pt) return std::nullopt;
   const Ray ray{Vec3(0.0), Vec3(0.0, 0.0, 1.0), std::numeric_limits<double>::infinity()};
-  return pt->radiance(std::span<const Ray>(&ray, 1), paths(60000), seed, &pool)[0];
+  return pt->radiance(std::span<const Ray>(&ray, 1), paths(30000), seed, &pool)[0];
 }
 
 // Measured lamps through the emission bins: L_ms = K_t² f Σ_k share_k Ī_k, Ī_k the lamp's mean

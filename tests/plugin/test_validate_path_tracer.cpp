@@ -75,7 +75,7 @@ TEST(ValidatePathTracer, SingleAndGlowAreWithinFifteenPercentOfAllOrders) {
                                       RingComparisonCase{"HG 0.75, K_t R = 3", HenyeyGreensteinPhase{0.75}, 3.0}, grey}) {
     // Under FOGBEAM_TEST_SCALE (the sanitizer pass) a share of the paths; the bound on σ then
     // does not apply (the 15 % + 3σ agreement does).
-    auto res = compareRings(c, test::scaled(12000, 2000), 11, pool, 151);
+    auto res = compareRings(c, test::scaled(6000, 2000), 11, pool, 151);
     ASSERT_TRUE(res.has_value()) << res.error().message;
     std::printf("  %s\n", c.name.c_str());
     for (const RingFigures& f : res->rings) {

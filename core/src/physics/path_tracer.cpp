@@ -98,58 +98,6 @@ struct PathTracer::PhaseTable {
   }
 };
 
-// The scattering angle α of a lamp connection along a segment, for NEE's third strategy
-// (segmentNee): on the segment x + t ω the lamp at S is seen at θ = atan((t − δ)/h) from the
-// closest approach (h its distance, δ where it is), and the light the lamp sends to the point
-// scatters towards −ω by α = π/2 + θ (cos α = −sin θ). The integrand holds p(cos α) dt and
-// dt = (r²/h) dα, so drawing α ∝ p(cos α) over the segment's window [π/2 + θ_a, π/2 + θ_b] puts
-// samples where the phase function's forward peak meets the segment (light running back along
-// it from a lamp ahead): fog-mie's diffraction peak (~1° wide, p(1) of several hundred per sr) is
-// missed by the equiangular point, which spreads its samples uniformly in θ. Measured before this
-// strategy: one path of 1 000 000 in fog-mie gave 1.8e7 cd/m² (the frame's mean was 0.6).
-// Density piecewise constant in α on cells α_i = π (i/n)² (crowding the peak); C(α) its integral.
-struct PathTracer::AngleTable {
-  static constexpr int kCells = 4096;
-  std::vector<double> alpha, cdf, density;  // nodes (kCells + 1), C at nodes, p per cell
-
-  explicit AngleTable(const Phase& phase) {
-    alpha.resize(kCells + 1);
-    cdf.assign(kCells + 1, 0.0);
-    density.resize(kCells);
-    for (int i = 0; i <= kCells; ++i) {
-      const double u = static_cast<double>(i) / kCells;
-      alpha[static_cast<std::size_t>(i)] = kPi * u * u;
-    }
-    for (std::size_t i = 0; i < density.size(); ++i) {
-      const double a = alpha[i], b = alpha[i + 1];
-      // The cell's mean of p (Simpson), so that C is the integral of p to within the fit.
-      density[i] = (evalPhase(phase, std::cos(a)) + 4.0 * evalPhase(phase, std::cos(0.5 * (a + b))) +
-                    evalPhase(phase, std::cos(b))) / 6.0;
-      cdf[i + 1] = cdf[i] + density[i] * (b - a);
-    }
-  }
-  [[nodiscard]] std::size_t cell(double a) const noexcept {
-    a = std::clamp(a, 0.0, kPi);
-    auto i = static_cast<std::size_t>(std::min(std::sqrt(a / kPi) * kCells, kCells - 1.0));
-    while (i > 0 && a < alpha[i]) --i;  // rounding of the root at a node: settle on the bracket
-    while (i + 1 < density.size() && a >= alpha[i + 1]) ++i;
-    return i;
-  }
-  [[nodiscard]] double integral(double a) const noexcept {
-    a = std::clamp(a, 0.0, kPi);
-    const std::size_t i = cell(a);
-    return cdf[i] + density[i] * (a - alpha[i]);
-  }
-  [[nodiscard]] double at(double a) const noexcept { return density[cell(a)]; }
-  // α with C(α) = c (C(0) ≤ c ≤ C(π)).
-  [[nodiscard]] double inverse(double c) const noexcept {
-    auto it = std::upper_bound(cdf.begin(), cdf.end(), c);
-    std::size_t i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - cdf.begin())) - 1;
-    i = std::min(i, density.size() - 1);
-    return density[i] > 0.0 ? std::clamp(alpha[i] + (c - cdf[i]) / density[i], alpha[i], alpha[i + 1]) : alpha[i];
-  }
-};
-
 Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medium,
                                      std::optional<GroundPlane> ground, const PathTracerOptions& options) {
   if (auto st = medium.validate(); !st) return st.error();
@@ -175,7 +123,6 @@ Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medi
   t.medium_ = medium;
   t.ground_ = ground;
   t.options_ = options;
-  t.angleTable_ = std::make_shared<const AngleTable>(medium.phase);
   if (options.tabulate_all_phases || std::holds_alternative<FogMiePhase>(medium.phase)) {
     t.phaseKind_ = 2;
     t.phaseTable_ = std::make_shared<const PhaseTable>(medium.phase, options.phase_table_nodes);
@@ -326,14 +273,11 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
     out.rgb += value * lamps_[l].color;
   };
 
-  // NEE along the segment x + t dir, t ∈ [0, T), per lamp, three samples combined by the balance
+  // NEE along the segment x + t dir, t ∈ [0, T), per lamp, two samples combined by the balance
   // heuristic (Veach 1997; Kulla & Fajardo 2012): the equiangular point t_A (pdf
-  // h / ((θ_b − θ_a) r²), which cancels the 1/r² of a lamp near the segment), the phase-angle
-  // point t_P (α ∝ p(cos α) over the segment's window: AngleTable; pdf p̃(α) h / (ΔC r²)) and the
-  // collision point t_C (density pdfC(t); present when `collided`). Each gives
-  // f(t) / (p_A(t) + p_P(t) + p_C(t)); their sum is an unbiased estimate of ∫_0^T f dt. Scaled by
-  // `weight`.
-  const AngleTable& angles = *angleTable_;
+  // h / ((θ_b − θ_a) r²), which cancels the 1/r² of a lamp near the segment) and the collision
+  // point t_C (density pdfC(t); present when `collided`). Each gives f(t) / (p_A(t) + p_C(t));
+  // their sum is an unbiased estimate of ∫_0^T f dt. Scaled by `weight`.
   auto segmentNee = [&](const Vec3& x, const Vec3& dir, double T, bool collided, double tc, auto&& pdfC, int order,
                         double weight) {
     for (std::size_t l = 0; l < lamps_.size(); ++l) {
@@ -345,27 +289,17 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
       const double tb = std::isfinite(T) ? std::atan2(T - delta, h) : 0.5 * kPi;
       const double span = tb - ta;
       if (!(span > 0.0)) continue;
-      const double cA = angles.integral(0.5 * kPi + ta);
-      const double mass = angles.integral(0.5 * kPi + tb) - cA;
       auto pdfEqui = [&](double t) { return h / (span * (h * h + (t - delta) * (t - delta))); };
-      auto pdfAngle = [&](double t) {
-        if (!(mass > 0.0)) return 0.0;
-        const double r2 = h * h + (t - delta) * (t - delta);
-        return angles.at(0.5 * kPi + std::atan2(t - delta, h)) * h / (mass * r2);
-      };
-      auto sampleAt = [&](double t) {
-        const double f = lampTerm(l, x + t * dir, dir, t);
-        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(t) + pdfAngle(t) + pdfC(t)));
-      };
-      const double tMax = std::isfinite(T) ? std::nextafter(T, 0.0) : kInf;
-      const double tA = std::clamp(delta + h * std::tan(ta + rng.uniform() * span), 0.0, tMax);
-      if (std::isfinite(tA)) sampleAt(tA);
-      const double xiP = rng.uniform();  // drawn whatever the mass, so that the streams stay aligned
-      if (mass > 0.0) {
-        const double tP = std::clamp(delta + h * std::tan(angles.inverse(cA + xiP * mass) - 0.5 * kPi), 0.0, tMax);
-        if (std::isfinite(tP)) sampleAt(tP);
+      double tA = delta + h * std::tan(ta + rng.uniform() * span);
+      tA = std::clamp(tA, 0.0, std::isfinite(T) ? std::nextafter(T, 0.0) : kInf);
+      if (std::isfinite(tA)) {
+        const double f = lampTerm(l, x + tA * dir, dir, tA);
+        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(tA) + pdfC(tA)));
       }
-      if (collided) sampleAt(tc);
+      if (collided) {
+        const double f = lampTerm(l, x + tc * dir, dir, tc);
+        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(tc) + pdfC(tc)));
+      }
     }
   };
 

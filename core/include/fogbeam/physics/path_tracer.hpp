@@ -16,12 +16,10 @@
 //
 // Method: backward (eye) path tracing. Every path segment (the camera ray, then each ray leaving a
 // scattering vertex) connects to every lamp by next-event estimation (NEE) — point lamps cannot be
-// hit — with three samples along the segment combined by the balance heuristic: the free-flight
+// hit — with two samples along the segment combined by the balance heuristic: the free-flight
 // collision point (sampled ∝ K_t e^{−K_t s}; forced into [0, D) on the camera ray by the truncated
-// exponential), an equiangular point (pdf ∝ 1/r² towards that lamp), which keeps the variance
-// finite next to a lamp where 1/r² would make NEE at collision points alone infinite-variance,
-// and a point drawn by the phase function of its scattering angle (the lamp's light running back
-// along the segment: fog-mie's forward peak, which the equiangular point misses).
+// exponential) and an equiangular point (pdf ∝ 1/r² towards that lamp), which keeps the variance
+// finite next to a lamp where 1/r² would make NEE at collision points alone infinite-variance.
 // The collision point continues the path: albedo Ω as a weight, a new direction drawn from the
 // phase function (HG and isotropic exactly; fog-mie from an inverse-CDF table over the scattering
 // angle, weighted by p / pdf so the estimate stays unbiased). Ground hits (z = z0, Lambertian ρ)
@@ -191,7 +189,6 @@ class PathTracer {
   [[nodiscard]] double guidePdf(const Vec3& x, const Vec3& w, double weightSum) const noexcept;
   [[nodiscard]] Vec3 sampleGuide(const Vec3& x, double weightSum, PathRng& rng) const noexcept;
   struct PhaseTable;  // inverse CDF over the scattering angle (path_tracer.cpp)
-  struct AngleTable;  // ∫ p(cos α) dα, NEE's phase-angle strategy (path_tracer.cpp)
   PathTracer() = default;
   std::vector<Lamp> lamps_;
   std::vector<Mat3> lampFromWorld_;
@@ -202,7 +199,6 @@ class PathTracer {
   std::optional<GroundPlane> ground_;
   PathTracerOptions options_;
   std::shared_ptr<const PhaseTable> phaseTable_;
-  std::shared_ptr<const AngleTable> angleTable_;
   double hgG_ = 0.0;
   int phaseKind_ = 0;  // 0 isotropic, 1 HG analytic, 2 table
   double diffusionD_ = 0.0, diffusionInvL_ = 0.0;
