@@ -565,6 +565,7 @@ json glowGlareStage(SizeRun& run) {
   // lamps move 0.5 m a frame, so every frame computes every lamp's curve anew.
   StageStats dozenStats, dozenInfStats;
   int dozen = 0;
+  LampEffectsReport::Tiles dozenTiles;  // the last frame's (tile, lamp) pairs by how each was taken
   {
     Scene many = run.scene;
     auto street = makeProfile(IsotropicProfile{4000.0});
@@ -602,6 +603,7 @@ json glowGlareStage(SizeRun& run) {
         if (f > 0) dozenInfStats.ms.push_back(1e3 * repInf.glow_seconds);
       }
       for (const auto& l : rep.lamps) dozen += !l.own && l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
+      dozenTiles = rep.glow_tiles;
     }
   }
   return {{"glow", glowStats.toJson()},
@@ -610,6 +612,7 @@ json glowGlareStage(SizeRun& run) {
           {"glow_dozen_lamps", dozenStats.toJson()},
           {"glow_dozen_lamps_infinite_fog", dozenInfStats.toJson()},
           {"lamps_glowing_in_dozen", dozen},
+          {"dozen_tiles", {{"bilinear", dozenTiles.bilinear}, {"half_cells", dozenTiles.half}, {"per_pixel", dozenTiles.exact}}},
           {"glare", glareStats.toJson()},
           {"lamps_in_view", visible},
           {"lamps_with_glow", glowing},
@@ -808,6 +811,12 @@ void printEffects(const json& e) {
   if (e.contains("glow_dozen_lamps") && e["glow_dozen_lamps"]["frames"].get<std::size_t>() > 0) {
     std::snprintf(note, sizeof note, "  12 lamps, %d glowing (the rest hidden), all moving: curves anew each frame",
                   e["lamps_glowing_in_dozen"].get<int>());
+    if (e.contains("dozen_tiles")) {
+      const auto& t = e["dozen_tiles"];
+      const std::size_t used = std::strlen(note);
+      std::snprintf(note + used, sizeof note - used, "; (tile, lamp) pairs %zu from the grid, %zu half-cells, %zu per pixel",
+                    t["bilinear"].get<std::size_t>(), t["half_cells"].get<std::size_t>(), t["per_pixel"].get<std::size_t>());
+    }
     printStage("glow, a dozen lamps", e["glow_dozen_lamps"], note);
     if (e.contains("glow_dozen_lamps_infinite_fog"))
       printStage("  the same, infinite fog", e["glow_dozen_lamps_infinite_fog"],

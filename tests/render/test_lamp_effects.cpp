@@ -924,6 +924,7 @@ LayerError compareLayers(const std::vector<float>& fast, const std::vector<float
 
 struct FastVsExact {
   LayerError glow, glare;
+  LampEffectsReport::Tiles glowTiles, glareTiles;  // the fast path's (tile, lamp) pairs by mode
 };
 
 FastVsExact fastAgainstExact(const Scene& scene, const SurfaceBuffers& surface, const char* what) {
@@ -933,15 +934,19 @@ FastVsExact fastAgainstExact(const Scene& scene, const SurfaceBuffers& surface, 
   LampEffectsReport rep;
   EXPECT_EQ(fx.path(), LampEffectsPath::Fast);
   fx.evaluate(scene, surface, glowF, glareF, rep);
+  const LampEffectsReport::Tiles glowTiles = rep.glow_tiles, glareTiles = rep.glare_tiles;
   fx.setPath(LampEffectsPath::Exact);
   fx.evaluate(scene, surface, glowX, glareX, rep);
-  FastVsExact r{compareLayers(glowF, glowX, true), compareLayers(glareF, glareX, false)};
+  EXPECT_EQ(rep.glow_tiles.bilinear + rep.glow_tiles.half + rep.glow_tiles.exact, 0u) << "exact path: no tiles";
+  FastVsExact r{compareLayers(glowF, glowX, true), compareLayers(glareF, glareX, false), glowTiles, glareTiles};
   int glowing = 0;
   for (const auto& l : rep.lamps) glowing += l.glow_peak_cd_m2 > 0.0 ? 1 : 0;
   std::printf("%-28s %4dx%-4d %2zu lamps (%d glow): glow max err %.2e, sum ratio %.6f; "
-              "glare max err %.2e, sum ratio %.6f\n",
+              "glare max err %.2e, sum ratio %.6f\n"
+              "%-28s (tile, lamp) pairs bilinear / half-cells / per pixel: glow %zu / %zu / %zu, glare %zu / %zu / %zu\n",
               what, scene.camera.width, scene.camera.height, rep.lamps.size(), glowing, r.glow.worst,
-              r.glow.sumRatio, r.glare.worst, r.glare.sumRatio);
+              r.glow.sumRatio, r.glare.worst, r.glare.sumRatio, "", glowTiles.bilinear, glowTiles.half,
+              glowTiles.exact, glareTiles.bilinear, glareTiles.half, glareTiles.exact);
   EXPECT_LE(r.glow.worst, 0.01) << what << ": glow";
   EXPECT_LE(r.glare.worst, 0.01) << what << ": glare";
   EXPECT_NEAR(r.glow.sumRatio, 1.0, 1e-3) << what;
@@ -976,7 +981,13 @@ SurfaceBuffers surfacesOf(const Scene& s) {
 TEST(LampEffectsFastPath, BenchSceneIsWithinOnePercentOfTheExactLayers) {
   for (auto [w, h] : {std::pair{640, 360}, std::pair{1280, 720}}) {
     const Scene s = benchLike(w, h);
-    fastAgainstExact(s, surfacesOf(s), "bench + oncoming car");
+    const FastVsExact r = fastAgainstExact(s, surfacesOf(s), "bench + oncoming car");
+    // All three ways are taken: of the tiles that fail the grid's check a few cells from a
+    // lamp's image, some pass it on their half-cells.
+    EXPECT_GT(r.glowTiles.bilinear, 0u);
+    EXPECT_GT(r.glowTiles.half, 0u);
+    EXPECT_GT(r.glowTiles.exact, 0u);
+    EXPECT_GT(r.glareTiles.half, 0u);
   }
 }
 
@@ -1051,8 +1062,9 @@ TEST(LampEffectsFastPath, ALampCloseToTheEyeInDenseFog) {
 }
 
 TEST(LampEffectsFastPath, TheCriterionCatchesAPlainCoarseGrid) {
-  // The check has teeth: the exact layers sampled every kCell px (the fast path's grid) and interpolated bilinearly
-  // everywhere (no per-pixel tiles) fail it near the lamps' images.
+  // The check has teeth: the exact layers sampled every kCell px (the fast path's grid), or
+  // every kCell / 2 px (its half-cells), and interpolated bilinearly everywhere (no tiles per
+  // pixel) fail it near the lamps' images.
   const Scene s = benchLike(320, 180);
   const SurfaceBuffers surf = surfacesOf(s);
   auto pool = std::make_shared<ThreadPool>(2);
@@ -1062,13 +1074,12 @@ TEST(LampEffectsFastPath, TheCriterionCatchesAPlainCoarseGrid) {
   LampEffectsReport rep;
   fx.evaluate(s, surf, glow, glare, rep);
   const int w = 320, h = 180;
-  auto coarse = [&](const std::vector<float>& x) {
+  auto coarse = [&](const std::vector<float>& x, int K) {
     std::vector<float> y(x);
-    constexpr int K = lamp_fx::kCell;
     for (int j = 0; j + K < h; ++j)
       for (int i = 0; i + K < w; ++i) {
         const int i0 = i / K * K, j0 = j / K * K;
-        const float u = static_cast<float>(i - i0) / K, v = static_cast<float>(j - j0) / K;
+        const float u = static_cast<float>(i - i0) / static_cast<float>(K), v = static_cast<float>(j - j0) / static_cast<float>(K);
         for (int ch = 0; ch < 3; ++ch) {
           auto at = [&](int a, int b) { return x[3 * (static_cast<std::size_t>(b) * w + static_cast<std::size_t>(a)) + static_cast<std::size_t>(ch)]; };
           y[3 * (static_cast<std::size_t>(j) * w + static_cast<std::size_t>(i)) + static_cast<std::size_t>(ch)] =
@@ -1077,11 +1088,13 @@ TEST(LampEffectsFastPath, TheCriterionCatchesAPlainCoarseGrid) {
       }
     return y;
   };
-  const double glareErr = compareLayers(coarse(glare), glare, false).worst;
-  const double glowErr = compareLayers(coarse(glow), glow, true).worst;
-  std::printf("plain %d px bilinear grid: glare max err %.3g, glow max err %.3g\n", lamp_fx::kCell, glareErr, glowErr);
-  EXPECT_GT(glareErr, 0.01);
-  EXPECT_GT(glowErr, 0.01);
+  for (int K : {lamp_fx::kCell, lamp_fx::kCell / 2}) {
+    const double glareErr = compareLayers(coarse(glare, K), glare, false).worst;
+    const double glowErr = compareLayers(coarse(glow, K), glow, true).worst;
+    std::printf("plain %d px bilinear grid: glare max err %.3g, glow max err %.3g\n", K, glareErr, glowErr);
+    EXPECT_GT(glareErr, 0.01) << K << " px";
+    EXPECT_GT(glowErr, 0.01) << K << " px";
+  }
 }
 
 }  // namespace

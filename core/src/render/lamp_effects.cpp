@@ -11,6 +11,7 @@
 #include "ground_veil.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -38,10 +39,46 @@ double since(std::chrono::steady_clock::time_point t) {
 using glow_quadrature::glowNodeAngle;
 using glow_quadrature::integrateFromApex;
 
-// Φ[L] R² / (2π) pieces: 2π ∫ L cos θ sin θ dθ (integrateFromApex).
+// Φ[L] R² / (2π) pieces: 2π ∫ L cos θ sin θ dθ (integrateFromApex). cos θ sin θ is kept per
+// thread for the last nodes: a moving lamp's curves, every frame on the same nodes, would
+// otherwise spend ~2 000 sines and cosines a frame each here (the rule reads each node twice).
 double fluxOver(const std::vector<double>& theta, const std::vector<double>& L) {
-  return 2.0 * kPi *
-         integrateFromApex(theta, [&](std::size_t i) { return L[i] * std::cos(theta[i]) * std::sin(theta[i]); });
+  thread_local std::vector<double> lastTheta, cs;
+  if (theta != lastTheta) {
+    lastTheta = theta;
+    cs.resize(theta.size());
+    for (std::size_t i = 0; i < theta.size(); ++i) cs[i] = std::cos(theta[i]) * std::sin(theta[i]);
+  }
+  return 2.0 * kPi * integrateFromApex(theta, [&](std::size_t i) { return L[i] * cs[i]; });
+}
+
+// A glow curve's fixed nodes for a table's angle nodes: θ_i (glowNodeAngle), and where each
+// falls among the table's angles (j_i, and its log-linear weight w_i). A moving lamp computes its
+// curve every frame; these do not change with it (only with `nodes` and the table), and their
+// asin and logs per node were most of the curve's cost. Per thread, rebuilt when either changes.
+struct CurveNodes {
+  std::vector<double> angles;  // the table's angle nodes they were made for
+  std::vector<double> theta, w;
+  std::vector<std::size_t> j;
+};
+const CurveNodes& curveNodes(const std::vector<double>& angles, std::size_t n) {
+  thread_local CurveNodes c;
+  if (c.theta.size() == n && c.angles == angles) return c;
+  c.angles = angles;
+  c.theta.resize(n);
+  c.w.resize(n);
+  c.j.resize(n);
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double theta = glowNodeAngle(i, n);
+    c.theta[i] = theta;
+    if (angles.size() < 2) continue;
+    const double th = std::max(theta, angles.front());
+    while (j + 2 < angles.size() && th > angles[j + 1]) ++j;
+    c.j[i] = j;
+    c.w[i] = std::clamp(std::log(th / angles[j]) / std::log(angles[j + 1] / angles[j]), 0.0, 1.0);
+  }
+  return c;
 }
 
 // S₁ for the sky ray at θ from an isotropic source of 1 cd at R (eq. 3 with the F table, Ω = 1):
@@ -101,17 +138,15 @@ Result<GlowCurve> glowCurveFromTable(const MultipleScatteringTable& ms, const ke
     positive = positive && f > 0.0;
     logF[j] = f > 0.0 ? std::log(f) : 0.0;
   }
-  std::size_t j = 0;
+  const CurveNodes& nodesOf = curveNodes(angles, n);
+  std::copy(nodesOf.theta.begin(), nodesOf.theta.end(), c.theta.begin());
   for (std::size_t i = 0; i < n; ++i) {
-    const double theta = glowNodeAngle(i, n);
-    c.theta[i] = theta;
     if (!positive) {
-      c.glow[i] = ms.radiance(1.0, kt, R, theta, fog.albedo);
+      c.glow[i] = ms.radiance(1.0, kt, R, c.theta[i], fog.albedo);
       continue;
     }
-    const double th = std::max(theta, angles.front());
-    while (j + 2 < angles.size() && th > angles[j + 1]) ++j;
-    const double w = std::clamp(std::log(th / angles[j]) / std::log(angles[j + 1] / angles[j]), 0.0, 1.0);
+    const std::size_t j = nodesOf.j[i];
+    const double w = nodesOf.w[i];
     c.glow[i] = kt * kt * std::exp((1.0 - w) * logF[j] + w * logF[j + 1]);
   }
   // The report's shares: the flux of the single-scattering part through the sphere of radius R
@@ -193,6 +228,8 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
   const Vec3 d = eye - lamp.position_m;
   const double len = glm::length(d);
   if (!(len > 0.0)) return 0.0;
+  // An isotropic lamp's mean over any cone is its intensity (a moving street lamp asks every frame).
+  if (const auto* iso = std::get_if<IsotropicProfile>(&lamp.profile->model())) return iso->intensity_cd;
   const Mat3 lampFromWorld = glm::transpose(lamp.worldFromLamp);
   const Vec3 axis = lampFromWorld * (d / len);  // towards the eye, lamp frame
   const double cosPsi = std::max(std::pow(std::clamp(q, 0.0, 1.0), opticalDistance), 0.5);
@@ -201,13 +238,23 @@ double glowSourceIntensity(const Lamp& lamp, const Vec3& eye, double opticalDist
   const Vec3 helper = std::abs(axis.z) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
   const Vec3 u = glm::normalize(glm::cross(axis, helper)), v = glm::cross(axis, u);
   constexpr int kBands = 8, kAzimuths = 16;
+  // cos φ and sin φ of the azimuths, even bands then odd bands (offset by half a step).
+  static const std::array<std::array<double, 2>, 2 * kAzimuths> kDirs = [] {
+    std::array<std::array<double, 2>, 2 * kAzimuths> t{};
+    for (int odd = 0; odd < 2; ++odd)
+      for (int a = 0; a < kAzimuths; ++a) {
+        const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * odd) / kAzimuths;
+        t[static_cast<std::size_t>(odd * kAzimuths + a)] = {std::cos(phi), std::sin(phi)};
+      }
+    return t;
+  }();
   double sum = 0.0;
   for (int b = 0; b < kBands; ++b) {
     const double c = 1.0 - (static_cast<double>(b) + 0.5) / kBands * (1.0 - cosPsi);
     const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
     for (int a = 0; a < kAzimuths; ++a) {
-      const double phi = 2.0 * kPi * (static_cast<double>(a) + 0.5 * (b & 1)) / kAzimuths;
-      sum += lamp.profile->intensity(c * axis + sn * (std::cos(phi) * u + std::sin(phi) * v));
+      const auto& cs = kDirs[static_cast<std::size_t>((b & 1) * kAzimuths + a)];
+      sum += lamp.profile->intensity(c * axis + sn * (cs[0] * u + cs[1] * v));
     }
   }
   return sum / (kBands * kAzimuths);
@@ -613,8 +660,12 @@ struct LampEffects::Tables {
     bool prefixAll = false;
     std::vector<std::size_t> order;               // lamps' indices, nearest first (glow)
     std::vector<float> floor;                     // per lamp: the check's absolute floor (table units)
-    std::vector<std::uint8_t> exact;              // tiles × lamps
+    std::vector<std::uint8_t> exact;              // tiles × lamps (lamp_fx::TileMode)
+    std::vector<std::int32_t> fineFirst;          // per tile: its first lamp not kTileBilinear (nl: none)
+    std::vector<std::array<std::size_t, 3>> modes;  // per tile row: its (tile, lamp) pairs by TileMode
     std::vector<float> imageX, imageY;            // per lamp: its image point, pixels (centre coordinates)
+    std::vector<float> weightTo, weightFrom;      // per lamp (LayerRow::weight_to, weight_from), padded to kCell
+    bool fromSorted = false;
     int gw = 0, gh = 0;
   };
   Layer glowLayer, glareLayer;
@@ -651,6 +702,14 @@ namespace {
 //    centre, (h²/8)(F_xx + F_yy), and at the edge midpoints it is each direction's part
 //    (h²/8) F_xx, so the check measures the error itself, not a bound; near a kink of the glow
 //    curve (where it leaves 0, 7–8° from a lamp) it sees the interpolant's spill-over.
+// A tile that fails the check (not for nearness) is tried on its four half-cells: the grid's
+// edge midpoints and centre are their corners, and the same check at their own centres and
+// edge midpoints (16 more values of the table) decides. Passed, the lamp is interpolated
+// bilinearly on the half-cells (lamp_fx::kTileHalf), else evaluated per pixel (kTileExact).
+// The error falls as h², so tiles a few cells from a lamp's image, where the glow and glare
+// curves bend too much for 16 px, mostly pass at 8 px: on the bench's dozen lamps at 1280 × 720
+// 1 712 (tile, lamp) pairs take their half-cells and 518 go per pixel, where all 2 230 went
+// per pixel before (docs/airlight.md, "Cost of glow and glare").
 // Every lamp's share is ≥ 0 and so is every weight, so a relative error ≤ τ per lamp is ≤ τ of
 // the sum at every pixel. floor_i: the glare has none (its table is > 0 at every angle: the
 // check is relative everywhere); the glow's is kGlowFloor × the lamp's peak (its curve is 0
@@ -886,30 +945,70 @@ void gridRow(const FastJob& J, std::size_t r) {
   const std::size_t gw = static_cast<std::size_t>(L.gw), plane = gw * static_cast<std::size_t>(L.gh);
   const float y0 = static_cast<float>(kCell * r) + 0.5f, y1 = y0 + 0.5f * kCell;
   const int count = L.gw;
-  for (std::size_t l = 0; l < L.lamps.size(); ++l) {
-    const lamp_fx::KernelLamp& k = L.lamps[l];
-    const std::size_t o = l * plane + r * gw;
-    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f, kCell, y0, count, L.grid.data() + o);
-    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y0, count, L.hmid.data() + o);
-    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f, kCell, y1, count, L.vmid.data() + o);
-    lamp_fx::radialRow(k, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y1, count, L.centre.data() + o);
-  }
   const std::size_t nl = L.lamps.size();
+  const int n = static_cast<int>(nl);
+  const std::size_t o = r * gw;
+  lamp_fx::radialRow(L.lamps.data(), n, plane, J.f, J.cx, J.cy, 0.5f, kCell, y0, count, L.grid.data() + o);
+  lamp_fx::radialRow(L.lamps.data(), n, plane, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y0, count, L.hmid.data() + o);
+  lamp_fx::radialRow(L.lamps.data(), n, plane, J.f, J.cx, J.cy, 0.5f, kCell, y1, count, L.vmid.data() + o);
+  lamp_fx::radialRow(L.lamps.data(), n, plane, J.f, J.cx, J.cy, 0.5f + 0.5f * kCell, kCell, y1, count,
+                     L.centre.data() + o);
   for (int ch = 0; ch < 3; ++ch) {
-    // Running sums in the last slot, copied out to slot m − 1 after lamp m when all are kept.
-    float* last = L.prefix.data() + ((L.prefixAll ? nl - 1 : 0) * 3 + static_cast<std::size_t>(ch)) * plane + r * gw;
-    std::fill(last, last + gw, 0.0f);
+    // Running sums: slot m − 1 holds lamps 0 … m − 1 when all are kept, else one slot
+    // accumulates in place.
+    const float* prev = nullptr;
     for (std::size_t l = 0; l < nl; ++l) {
       const float col = L.lamps[l].color[ch];
       const float* g = L.grid.data() + l * plane + r * gw;
-      for (std::size_t c = 0; c < gw; ++c) last[c] += col * g[c];
-      if (L.prefixAll && l + 1 < nl)
-        std::copy(last, last + gw, L.prefix.data() + (l * 3 + static_cast<std::size_t>(ch)) * plane + r * gw);
+      float* dst = L.prefix.data() + ((L.prefixAll ? l : 0) * 3 + static_cast<std::size_t>(ch)) * plane + r * gw;
+      if (prev == nullptr) {
+        for (std::size_t c = 0; c < gw; ++c) dst[c] = 0.0f + col * g[c];
+      } else {
+        for (std::size_t c = 0; c < gw; ++c) dst[c] = prev[c] + col * g[c];
+      }
+      prev = dst;
     }
   }
 }
 
-// Pass 2, tile row r: the tiles' flags (above), then the pixel rows 8r … 8r + 7.
+// Whether lamp l's table is interpolated within the tolerance on each of the four half-cells
+// of the tile whose top-left node is at (x0, y0) (pixel-centre coordinates), N its 3 × 3 nodes:
+// the check of tileRow (centre and edge midpoints against the bilinear prediction, relative to
+// the smallest of the half-cell's nine samples or the lamp's floor) at half the spacing.
+bool halfCellsPass(const FastJob& J, std::size_t l, float x0, float y0, const float (&N)[3][3]) {
+  using lamp_fx::kCell;
+  constexpr float q = 0.25f * kCell;  // a quarter of the tile
+  // Points: the half-cells' centres C[b][a], the midpoints H[b][a] of their horizontal edges
+  // (rows b = 0, 1, 2 at x = q, 3q) and V[b][a] of their vertical edges (columns a = 0, 1, 2 at
+  // y = q, 3q).
+  float xs[16], ys[16], v[16];
+  int k = 0;
+  for (int b = 0; b < 2; ++b)
+    for (int a = 0; a < 2; ++a, ++k) xs[k] = x0 + q * static_cast<float>(2 * a + 1), ys[k] = y0 + q * static_cast<float>(2 * b + 1);
+  for (int b = 0; b < 3; ++b)
+    for (int a = 0; a < 2; ++a, ++k) xs[k] = x0 + q * static_cast<float>(2 * a + 1), ys[k] = y0 + 2.0f * q * static_cast<float>(b);
+  for (int b = 0; b < 2; ++b)
+    for (int a = 0; a < 3; ++a, ++k) xs[k] = x0 + 2.0f * q * static_cast<float>(a), ys[k] = y0 + q * static_cast<float>(2 * b + 1);
+  const auto& L = *J.layer;
+  lamp_fx::radialPoints(L.lamps[l], J.f, J.cx, J.cy, xs, ys, 16, v);
+  const float* C = v;       // C[b * 2 + a]
+  const float* H = v + 4;   // H[b * 2 + a], b = 0 … 2
+  const float* V = v + 10;  // V[b * 3 + a], a = 0 … 2
+  for (int b = 0; b < 2; ++b)
+    for (int a = 0; a < 2; ++a) {
+      const float c00 = N[b][a], c10 = N[b][a + 1], c01 = N[b + 1][a], c11 = N[b + 1][a + 1];
+      const float ctr = C[b * 2 + a], top = H[b * 2 + a], bottom = H[(b + 1) * 2 + a], left = V[b * 3 + a],
+                  right = V[b * 3 + a + 1];
+      const float err = std::max({std::abs(ctr - 0.25f * (c00 + c10 + c01 + c11)), std::abs(top - 0.5f * (c00 + c10)),
+                                  std::abs(bottom - 0.5f * (c01 + c11)), std::abs(left - 0.5f * (c00 + c01)),
+                                  std::abs(right - 0.5f * (c10 + c11))});
+      const float lo = std::min({c00, c10, c01, c11, ctr, top, bottom, left, right});
+      if (err > kCheckTolerance * std::max(lo, L.floor[l])) return false;
+    }
+  return true;
+}
+
+// Pass 2, tile row r: the tiles' flags (above), then the pixel rows kCell·r … kCell·(r + 1) − 1.
 void tileRow(const FastJob& J, std::size_t r) {
   using lamp_fx::kCell;
   auto& L = *J.layer;
@@ -917,31 +1016,72 @@ void tileRow(const FastJob& J, std::size_t r) {
   const std::size_t nl = L.lamps.size(), tilesW = gw - 1;
   const float margin = kNearCells * kCell;
   const float yLo = static_cast<float>(kCell * r) + 0.5f, yHi = yLo + kCell - 1.0f;
-  for (std::size_t c = 0; c < tilesW; ++c) {
-    std::uint8_t* flags = L.exact.data() + (r * tilesW + c) * nl;
-    const float xLo = static_cast<float>(kCell * c) + 0.5f, xHi = xLo + kCell - 1.0f;
-    for (std::size_t l = 0; l < nl; ++l) {
-      const float ix = L.imageX[l], iy = L.imageY[l];
-      if (ix >= xLo - margin && ix <= xHi + margin && iy >= yLo - margin && iy <= yHi + margin) {
-        flags[l] = 1;
-        continue;
-      }
-      const std::size_t o = l * plane, n00 = o + r * gw + c, n10 = n00 + 1, n01 = n00 + gw, n11 = n01 + 1;
-      const float g00 = L.grid[n00], g10 = L.grid[n10], g01 = L.grid[n01], g11 = L.grid[n11];
-      const float ctr = L.centre[n00], top = L.hmid[n00], bottom = L.hmid[n01], left = L.vmid[n00],
-                  right = L.vmid[n10];
-      const float err = std::max({std::abs(ctr - 0.25f * (g00 + g10 + g01 + g11)), std::abs(top - 0.5f * (g00 + g10)),
-                                  std::abs(bottom - 0.5f * (g01 + g11)), std::abs(left - 0.5f * (g00 + g01)),
-                                  std::abs(right - 0.5f * (g10 + g11))});
-      const float lo = std::min({g00, g10, g01, g11, ctr, top, bottom, left, right});
-      flags[l] = err > kCheckTolerance * std::max(lo, L.floor[l]) ? 1 : 0;
+  // Lamp by lamp over the row's tiles: the check's arithmetic on contiguous nodes (vectorised
+  // by the compiler: a scalar pass tile by tile cost ~13 % of a frame of a dozen lamps).
+  thread_local std::vector<std::uint8_t> fails;
+  fails.resize(tilesW);
+  for (std::size_t l = 0; l < nl; ++l) {
+    const std::size_t o = l * plane + r * gw;
+    const float* g0 = L.grid.data() + o;
+    const float* g1 = g0 + gw;
+    const float* h0 = L.hmid.data() + o;
+    const float* h1 = h0 + gw;
+    const float* v0 = L.vmid.data() + o;
+    const float* ce = L.centre.data() + o;
+    const float floorL = L.floor[l];
+    std::uint8_t* bad = fails.data();
+    auto maxf = [](float x, float y) { return x > y ? x : y; };
+    auto minf = [](float x, float y) { return x < y ? x : y; };
+    for (std::size_t c = 0; c < tilesW; ++c) {
+      // The tile's corners, edge midpoints and centre (the 3 × 3 nodes of its half-cells).
+      const float n00 = g0[c], n20 = g0[c + 1], n02 = g1[c], n22 = g1[c + 1];
+      const float top = h0[c], bottom = h1[c], left = v0[c], right = v0[c + 1], ctr = ce[c];
+      float err = std::abs(ctr - 0.25f * (n00 + n20 + n02 + n22));
+      err = maxf(err, std::abs(top - 0.5f * (n00 + n20)));
+      err = maxf(err, std::abs(bottom - 0.5f * (n02 + n22)));
+      err = maxf(err, std::abs(left - 0.5f * (n00 + n02)));
+      err = maxf(err, std::abs(right - 0.5f * (n20 + n22)));
+      const float lo = minf(minf(minf(n00, n20), minf(n02, n22)), minf(minf(minf(top, bottom), minf(left, right)), ctr));
+      bad[c] = err > kCheckTolerance * maxf(lo, floorL) ? 1 : 0;
     }
+    const float ix = L.imageX[l], iy = L.imageY[l];
+    const bool nearRow = iy >= yLo - margin && iy <= yHi + margin;
+    for (std::size_t c = 0; c < tilesW; ++c) {
+      std::uint8_t& flag = L.exact[(r * tilesW + c) * nl + l];
+      const float xLo = static_cast<float>(kCell * c) + 0.5f, xHi = xLo + kCell - 1.0f;
+      if (nearRow && ix >= xLo - margin && ix <= xHi + margin) {
+        flag = lamp_fx::kTileExact;
+      } else if (!bad[c]) {
+        flag = lamp_fx::kTileBilinear;
+      } else {
+        // The same check on the four half-cells (the bilinear error falls as the square of the
+        // spacing, so most tiles a few cells from a lamp's image pass it): the table at their
+        // centres and edge midpoints, 16 points, against each half-cell's corners among the
+        // tile's 3 × 3 nodes N[b][a] (a along x, b along y, kCell / 2 apart).
+        const float N[3][3] = {{g0[c], h0[c], g0[c + 1]}, {v0[c], ce[c], v0[c + 1]}, {g1[c], h1[c], g1[c + 1]}};
+        flag = halfCellsPass(J, l, xLo, yLo, N) ? lamp_fx::kTileHalf : lamp_fx::kTileExact;
+      }
+    }
+  }
+  std::array<std::size_t, 3>& modes = L.modes[r];
+  modes = {0, 0, 0};
+  for (std::size_t c = 0; c < tilesW; ++c) {
+    const std::uint8_t* flags = L.exact.data() + (r * tilesW + c) * nl;
+    std::size_t first = 0;
+    while (first < nl && flags[first] == lamp_fx::kTileBilinear) ++first;
+    L.fineFirst[r * tilesW + c] = static_cast<std::int32_t>(first);
+    modes[lamp_fx::kTileBilinear] += first;
+    for (std::size_t l = first; l < nl; ++l) ++modes[flags[l]];
   }
   lamp_fx::LayerRow row;
   row.lamps = L.lamps.data();
+  row.fine_first = L.fineFirst.data();
   row.nLamps = static_cast<int>(nl);
   row.prefix = L.prefix.data();
   row.prefix_all = L.prefixAll;
+  row.weight_to = L.weightTo.data();
+  row.weight_from = L.weightFrom.data();
+  row.from_sorted = L.fromSorted;
   row.exact = L.exact.data();
   row.gw = L.gw;
   row.gh = L.gh;
@@ -972,8 +1112,8 @@ void tileRow(const FastJob& J, std::size_t r) {
 // The fast path for one layer (header comment): grid, flags and rows on the pool.
 void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector<LampEffects::Tables::Radial>& lamps,
               const Camera& cam, double f, const Vec2& c, const float* distance, float floorFraction,
-              std::vector<float>& out, const LampEffects::Tables::Veil* veil = nullptr, double kt = 0.0,
-              double eyeHeight = 0.0) {
+              std::vector<float>& out, LampEffectsReport::Tiles& tiles, const LampEffects::Tables::Veil* veil = nullptr,
+              double kt = 0.0, double eyeHeight = 0.0) {
   using lamp_fx::kCell;
   const std::size_t n = static_cast<std::size_t>(cam.width) * static_cast<std::size_t>(cam.height);
   out.resize(3 * n);  // every pixel is written below
@@ -1004,6 +1144,8 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
   L.imageX.resize(nl);
   L.imageY.resize(nl);
   L.exact.resize(static_cast<std::size_t>(L.gw - 1) * static_cast<std::size_t>(L.gh - 1) * nl);
+  L.fineFirst.resize(static_cast<std::size_t>(L.gw - 1) * static_cast<std::size_t>(L.gh - 1));
+  L.modes.resize(static_cast<std::size_t>(L.gh - 1));
   for (std::size_t l = 0; l < nl; ++l) {
     const LampEffects::Tables::Radial& rad = lamps[L.order[l]];
     lamp_fx::KernelLamp& k = L.lamps[l];
@@ -1016,11 +1158,23 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
     k.weight_scale = rad.weightTo > rad.weightFrom ? 1.0f / (rad.weightTo - rad.weightFrom) : 0.0f;
     k.table = rad.table;
     k.grid = L.grid.data() + l * plane;
+    k.hmid = L.hmid.data() + l * plane;
+    k.vmid = L.vmid.data() + l * plane;
+    k.centre = L.centre.data() + l * plane;
     L.floor[l] = floorFraction * *std::max_element(rad.table, rad.table + kNodes);
     // Image point (pixel-centre coordinates, as the evaluation's i + ½): x = c_x − f e_y/e_x.
     const bool ahead = rad.e[0] > 0.0f;
     L.imageX[l] = ahead ? static_cast<float>(c.x - f * static_cast<double>(rad.e[1] / rad.e[0])) : -1e30f;
     L.imageY[l] = ahead ? static_cast<float>(c.y - f * static_cast<double>(rad.e[2] / rad.e[0])) : -1e30f;
+  }
+  const std::size_t padded = (nl + lamp_fx::kCell - 1) / lamp_fx::kCell * lamp_fx::kCell;
+  L.weightTo.assign(padded, std::numeric_limits<float>::infinity());  // never read past nl (masked)
+  L.weightFrom.assign(padded, std::numeric_limits<float>::infinity());
+  L.fromSorted = true;
+  for (std::size_t l = 0; l < nl; ++l) {
+    L.weightTo[l] = L.lamps[l].weight_to;
+    L.weightFrom[l] = L.lamps[l].weight_from;
+    L.fromSorted = L.fromSorted && (l == 0 || L.weightFrom[l] >= L.weightFrom[l - 1]);
   }
   FastJob job{&L, distance, out.data(), cam.width, cam.height, static_cast<float>(f), static_cast<float>(c.x),
               static_cast<float>(c.y)};
@@ -1035,6 +1189,11 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
   const FastJob* jp = &job;
   pool.parallelFor(static_cast<std::size_t>(L.gh), [jp](std::size_t r) { gridRow(*jp, r); });
   pool.parallelFor(static_cast<std::size_t>(L.gh - 1), [jp](std::size_t r) { tileRow(*jp, r); });
+  for (const auto& m : L.modes) {
+    tiles.bilinear += m[lamp_fx::kTileBilinear];
+    tiles.half += m[lamp_fx::kTileHalf];
+    tiles.exact += m[lamp_fx::kTileExact];
+  }
 }
 
 }  // namespace
@@ -1083,6 +1242,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   std::size_t nReport = 0;  // report.lamps' elements are reused (their names keep their storage)
   report.eye_illuminance_lx = report.veiling_luminance_cd_m2 = 0.0;
   report.glow_seconds = report.glare_seconds = 0.0;
+  report.glow_tiles = report.glare_tiles = {};
   t.glow.clear();
   t.glare.clear();
   const double q = std::clamp(meanCosine(fog.phase), 0.0, 0.99);
@@ -1411,7 +1571,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   const bool fast = path_ == LampEffectsPath::Fast;
   if (!glow_.enabled) glowOut.clear();
   else if (fast)
-    fastFill(*pool_, t.glowLayer, t.glow, cam, f, c, surface.distance.data(), kGlowFloor, glowOut,
+    fastFill(*pool_, t.glowLayer, t.glow, cam, f, c, surface.distance.data(), kGlowFloor, glowOut, report.glow_tiles,
              report.ground_veil ? &t.veil : nullptr, kt, cam.position_m.z - glow_.ground_height_m);
   else fill(t.glow, true, glowOut);
   if (report.ground_veil && !fast)  // the fast path adds it in its rows (FillRow)
@@ -1419,7 +1579,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
   report.glow_seconds = since(tGlow);
   const auto tGlare = std::chrono::steady_clock::now();
   if (!glare_.enabled) glareOut.clear();
-  else if (fast) fastFill(*pool_, t.glareLayer, t.glare, cam, f, c, nullptr, 0.0f, glareOut);
+  else if (fast) fastFill(*pool_, t.glareLayer, t.glare, cam, f, c, nullptr, 0.0f, glareOut, report.glare_tiles);
   else fill(t.glare, false, glareOut);
   report.glare_seconds = since(tGlare);
 }

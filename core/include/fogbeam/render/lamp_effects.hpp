@@ -111,6 +111,12 @@ struct LampEffectsReport {
   bool ground_veil = false;
   /// Of glow_seconds: making the veil anew this frame (0 when kept from an earlier frame).
   double ground_veil_build_seconds = 0.0;
+  /// The fast path's (tile, lamp) pairs by how each was taken (docs/airlight.md, "Cost of glow
+  /// and glare"): from the kCell grid, from the tile's half-cells, per pixel. 0 on the exact path.
+  struct Tiles {
+    std::size_t bilinear = 0, half = 0, exact = 0;
+  };
+  Tiles glow_tiles, glare_tiles;
 };
 
 /// The glow of an isotropic source of 1 cd at distance R in `fog` (header comment), on the
@@ -262,6 +268,18 @@ struct KernelLamp {
   float weight_from = 0.0f, weight_to = 0.0f, weight_scale = 0.0f;
   const float* table = nullptr;           ///< kNodes values (+1 readable past the last: not read)
   const float* grid = nullptr;            ///< the table at the grid's nodes, gw × gh, row-major
+  /// The table at each cell's top-edge midpoint, left-edge midpoint and centre (indexed by the
+  /// cell's top-left node, gw × gh): with the grid, the 3 × 3 nodes of the cell's half-cells.
+  const float* hmid = nullptr;
+  const float* vmid = nullptr;
+  const float* centre = nullptr;
+};
+
+/// Per (tile, lamp): how the fast path takes the lamp in that tile.
+enum TileMode : std::uint8_t {
+  kTileBilinear = 0,  ///< bilinear over the kCell grid (its share of the prefix sums)
+  kTileExact = 1,     ///< the table per pixel
+  kTileHalf = 2,      ///< bilinear over the tile's four half-cells (kCell / 2 px: the grid's 3 × 3 nodes of the tile)
 };
 
 /// One pixel row j of a layer: Σ over lamps of colour × (weight) × table(θ), from the grid's
@@ -275,7 +293,14 @@ struct LayerRow {
   /// m = nLamps, at `prefix` (glare: weights 1). Sorted by weight_to.
   const float* prefix = nullptr;
   bool prefix_all = false;
-  const std::uint8_t* exact = nullptr;   ///< (gw − 1) × (gh − 1) tiles × nLamps flags
+  /// The lamps' weight_to and weight_from, contiguous and readable up to a multiple of kCell
+  /// entries (glow; nullptr with `distance` nullptr), and whether weight_from ascends with them
+  /// (then the lamps a segment skips for d ≤ from are a suffix).
+  const float* weight_to = nullptr;
+  const float* weight_from = nullptr;
+  bool from_sorted = false;
+  const std::uint8_t* exact = nullptr;   ///< (gw − 1) × (gh − 1) tiles × nLamps TileMode flags
+  const std::int32_t* fine_first = nullptr;  ///< per tile: its first lamp whose flag is not kTileBilinear
   int gw = 0, gh = 0, width = 0, j = 0;
   float f = 1.0f, cx = 0.0f, cy = 0.0f;  ///< focal length and principal point, pixels
   const float* distance = nullptr;       ///< row j's surface distances (glow), nullptr: weights 1
@@ -291,9 +316,13 @@ struct LayerRow {
   float veil_zf = 0.0f, veil_zl = 0.0f, veil_zu = 0.0f, veil_hk = 0.0f, veil_hkh = 0.0f;
 };
 
-/// The lamp's table at the `count` points (x0 + k dx, y), pixel-centre coordinates.
-void radialRow(const KernelLamp& lamp, float f, float cx, float cy, float x0, float dx, float y, int count,
-               float* out);
+/// Each of `nLamps` lamps' tables at the `count` points (x0 + k dx, y), pixel-centre coordinates:
+/// lamp l's values at out + l · stride (the pixels' rays are computed once for all lamps).
+void radialRow(const KernelLamp* lamps, int nLamps, std::size_t stride, float f, float cx, float cy, float x0,
+               float dx, float y, int count, float* out);
+/// The lamp's table at the `count` points (x[k], y[k]), pixel-centre coordinates.
+void radialPoints(const KernelLamp& lamp, float f, float cx, float cy, const float* x, const float* y, int count,
+                  float* out);
 void fillRow(const LayerRow& row);
 }  // namespace lamp_fx
 
