@@ -434,9 +434,8 @@ bool validateSurfaceScattering(int samples) {
         std::vector<double> means(bins, I), dipoles(3 * bins, 0.0), dotN(bins, 0.0);
         const Mat3 lampFromWorld = glm::transpose(c.lamp.worldFromLamp);
         if (map) map->lookup(lampFromWorld * (-d / R), means.data(), dipoles.data());
-        const Vec3 nLamp = lampFromWorld * Vec3(0.0, 0.0, 1.0);  // the road's normal, lamp frame
-        for (std::size_t b = 0; b < bins; ++b)
-          dotN[b] = dipoles[3 * b] * nLamp.x + dipoles[3 * b + 1] * nLamp.y + dipoles[3 * b + 2] * nLamp.z;
+        // The road's normal in the lamp's frame.
+        AnnulusMeanMap::dipolesAlong(dipoles.data(), bins, lampFromWorld * Vec3(0.0, 0.0, 1.0), dotN.data());
         const double kt = fog.extinction_per_m;
         const double m = kt * kt * (*fogTable)->irradiance(kt * R, d.z / R, means.data(), dotN.data());
         if (order1Table && k < inf.size()) {

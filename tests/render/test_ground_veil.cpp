@@ -71,7 +71,7 @@ TEST(GroundVeil, TheRoadMapIsTheLampsDirectLightReflected) {
   ASSERT_TRUE(iso.has_value());
   ground_veil::Lamp lamp;
   lamp.position_m = Vec3(1.0, 0.5, 0.7);
-  lamp.profile = iso->get();
+  lamp.profile = *iso;
   lamp.color[0] = 1.0;
   lamp.color[1] = 0.5;
   lamp.color[2] = 0.25;
@@ -106,7 +106,7 @@ TEST(GroundVeil, TheRoadMapHoldsTheFogLightTheSurfacesShow) {
   ASSERT_TRUE(table.has_value()) << table.error().message;
   ground_veil::Lamp lamp;
   lamp.position_m = Vec3(1.0, 0.5, 0.7);
-  lamp.profile = iso->get();
+  lamp.profile = *iso;
   const ground_veil::Ground ground{0.1, 0.2};
   const Vec3 eye(0.0, 0.0, 1.3);
   const ground_veil::RoadMap direct = ground_veil::roadMap({lamp}, fog, ground, eye, 192, 360);

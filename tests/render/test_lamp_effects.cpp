@@ -402,7 +402,7 @@ TEST(LampEffectsLayers, TheRoadLitByTheOwnLampsVeilsTheView) {
   ground_veil::Lamp gl;
   gl.position_m = own.lamp.position_m;
   gl.lampFromWorld = glm::transpose(own.lamp.worldFromLamp);
-  gl.profile = own.lamp.profile.get();
+  gl.profile = own.lamp.profile;
   const ground_veil::Ground ground{0.0, 0.1};
   // The road's light as the surface layer shows it (`[glow] surfaces`, on by default): its direct
   // light and the fog's scattered light on it (the same table and annulus means as that layer).

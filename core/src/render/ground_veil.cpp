@@ -49,9 +49,7 @@ RoadMap roadMap(const std::vector<Lamp>& lamps, const Medium& fog, const Ground&
           // isotropic: every bin's mean is its intensity.
           if (l.annuli != nullptr) {
             l.annuli->lookup(wl, means.data(), dipoles.data());
-            const Vec3 n = l.lampFromWorld * Vec3(0.0, 0.0, 1.0);
-            for (std::size_t k = 0; k < bins; ++k)
-              dotN[k] = dipoles[3 * k] * n.x + dipoles[3 * k + 1] * n.y + dipoles[3 * k + 2] * n.z;
+            AnnulusMeanMap::dipolesAlong(dipoles.data(), bins, l.lampFromWorld * Vec3(0.0, 0.0, 1.0), dotN.data());
           } else {
             std::fill(means.begin(), means.end(), intensity);
             std::fill(dotN.begin(), dotN.end(), 0.0);

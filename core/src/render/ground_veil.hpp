@@ -39,7 +39,7 @@ namespace fogbeam::ground_veil {
 struct Lamp {
   Vec3 position_m{0.0};
   Mat3 lampFromWorld{1.0};
-  const Profile* profile = nullptr;
+  std::shared_ptr<const Profile> profile;  ///< null: the lamp lights nothing
   double color[3] = {1.0, 1.0, 1.0};
   /// The profile's annulus means for the fog light (render/fog_light.hpp; null: the road's
   /// direct light alone).

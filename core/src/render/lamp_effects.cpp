@@ -755,7 +755,7 @@ void veilKey(const Scene& scene, const std::vector<ground_veil::Lamp>& lamps, co
   const auto [kind, a, b, cc] = phaseIdentity(scene.fog.phase);
   for (double v : {static_cast<double>(kind), a, b, cc}) k.push_back(v);
   for (const ground_veil::Lamp& l : lamps)
-    for (double v : {l.color[0], l.color[1], l.color[2], static_cast<double>(reinterpret_cast<std::uintptr_t>(l.profile))})
+    for (double v : {l.color[0], l.color[1], l.color[2], static_cast<double>(reinterpret_cast<std::uintptr_t>(l.profile.get()))})
       k.push_back(v);
   exact = k.size();
   auto mat = [&k](const Mat3& m) {
@@ -790,23 +790,19 @@ void buildVeil(LampEffects::Tables::Veil& v, const Scene& scene, const std::vect
   // the own lamps' glow): the veil scatters the road as the image shows it. Measured against the
   // path tracer (the own low beam over a road of ρ = 0.1, docs/airlight.md): 8–16° about the lamp
   // 0.86 of it with the direct light alone, 0.92 with the fog light too.
-  const FogLightTable* fogLight = nullptr;
-  std::shared_ptr<const FogLightTable> fogLightOwner;
+  std::shared_ptr<const FogLightTable> fogLight;
   std::vector<ground_veil::Lamp> lit = lamps;
   if (glow.surfaces && scene.fog.albedo > 0.0) {
     if (auto table = FogLightTable::shipped(scene.fog.phase, scene.fog.albedo, &pool)) {
-      fogLightOwner = std::move(table).value();
-      fogLight = fogLightOwner.get();
+      fogLight = std::move(table).value();
       for (ground_veil::Lamp& l : lit)
-        for (const SceneLamp& sl : scene.lamps)
-          if (sl.lamp.profile.get() == l.profile && !std::holds_alternative<IsotropicProfile>(sl.lamp.profile->model())) {
-            // Made at the service's start (FogLightPrewarm) or by the surface layer: shared.
-            l.annuli = AnnulusMeanMap::shared(sl.lamp.profile, fogLight->edges(), true, &pool);
-            break;
-          }
+        if (l.profile && !std::holds_alternative<IsotropicProfile>(l.profile->model()))
+          // Made at the service's start (FogLightPrewarm) or by the surface layer: shared.
+          l.annuli = AnnulusMeanMap::shared(l.profile, fogLight->edges(), true, &pool);
     }
   }
-  const ground_veil::RoadMap road = ground_veil::roadMap(lit, scene.fog, ground, cam.position_m, 96, 180, &pool, fogLight);
+  const ground_veil::RoadMap road =
+      ground_veil::roadMap(lit, scene.fog, ground, cam.position_m, 96, 180, &pool, fogLight.get());
   const double step = std::max(4.0, cam.focalLengthPixels() * std::tan(radians(kVeilNodeDeg)));
   v.nx = std::max(2, static_cast<int>(std::ceil(cam.width / step)) + 1);
   // Rows: kVeilNodeDeg apart, and kVeilHorizonDeg apart from 2° above the horizon to 6° below it,
@@ -1167,8 +1163,9 @@ void fastFill(ThreadPool& pool, LampEffects::Tables::Layer& L, const std::vector
     L.imageX[l] = ahead ? static_cast<float>(c.x - f * static_cast<double>(rad.e[1] / rad.e[0])) : -1e30f;
     L.imageY[l] = ahead ? static_cast<float>(c.y - f * static_cast<double>(rad.e[2] / rad.e[0])) : -1e30f;
   }
-  const std::size_t padded = (nl + lamp_fx::kCell - 1) / lamp_fx::kCell * lamp_fx::kCell;
-  L.weightTo.assign(padded, std::numeric_limits<float>::infinity());  // never read past nl (masked)
+  // FillRow loads a vector from any lamp index below nl: kCell readable entries past the last.
+  const std::size_t padded = nl + lamp_fx::kCell;
+  L.weightTo.assign(padded, std::numeric_limits<float>::infinity());  // the padding is masked out
   L.weightFrom.assign(padded, std::numeric_limits<float>::infinity());
   L.fromSorted = true;
   for (std::size_t l = 0; l < nl; ++l) {
@@ -1549,7 +1546,7 @@ void LampEffects::evaluate(const Scene& scene, const SurfaceBuffers& surface, st
       ground_veil::Lamp l;
       l.position_m = sl.lamp.position_m;
       l.lampFromWorld = glm::transpose(sl.lamp.worldFromLamp);
-      l.profile = sl.lamp.profile.get();
+      l.profile = sl.lamp.profile;
       for (int k = 0; k < 3; ++k) l.color[k] = sl.lamp.color[k];
       t.veilLamps.push_back(l);
     }

@@ -235,6 +235,12 @@ class AnnulusMeanMap {
   /// Ī₁_k, lamp frame, into dipoles[3k … 3k + 2] (made perpendicular to w).
   void lookup(const Vec3& w, double* means, double* dipoles = nullptr) const noexcept;
   void lookup(const Vec3& w, float* means, float* dipoles = nullptr) const noexcept;
+  /// The dipoles' components along the unit vector `n` (lamp frame: a surface's normal),
+  /// dotN[k] = Ī₁_k · n for k < bins: what FogLightTable::irradiance takes as `dipoleDotN`.
+  static void dipolesAlong(const double* dipoles, std::size_t bins, const Vec3& n, double* dotN) noexcept {
+    for (std::size_t k = 0; k < bins; ++k)
+      dotN[k] = dipoles[3 * k] * n.x + dipoles[3 * k + 1] * n.y + dipoles[3 * k + 2] * n.z;
+  }
   [[nodiscard]] std::size_t bins() const noexcept { return bins_; }
 
   /// The grid, for the shaders: rows of the angle α from the axis every kFineDeg up to

@@ -293,9 +293,10 @@ struct LayerRow {
   /// m = nLamps, at `prefix` (glare: weights 1). Sorted by weight_to.
   const float* prefix = nullptr;
   bool prefix_all = false;
-  /// The lamps' weight_to and weight_from, contiguous and readable up to a multiple of kCell
-  /// entries (glow; nullptr with `distance` nullptr), and whether weight_from ascends with them
-  /// (then the lamps a segment skips for d ≤ from are a suffix).
+  /// The lamps' weight_to and weight_from, contiguous, with kCell readable entries past the
+  /// last lamp (a vector loaded from any lamp's index; glow: read only where `distance` is set),
+  /// and whether weight_from ascends with them (then the lamps a segment skips for d ≤ from are
+  /// a suffix).
   const float* weight_to = nullptr;
   const float* weight_from = nullptr;
   bool from_sorted = false;
