@@ -1012,10 +1012,13 @@ void tileRow(const FastJob& J, std::size_t r) {
   const std::size_t nl = L.lamps.size(), tilesW = gw - 1;
   const float margin = kNearCells * kCell;
   const float yLo = static_cast<float>(kCell * r) + 0.5f, yHi = yLo + kCell - 1.0f;
-  // Lamp by lamp over the row's tiles: the check's arithmetic on contiguous nodes (vectorised
-  // by the compiler: a scalar pass tile by tile cost ~13 % of a frame of a dozen lamps).
-  thread_local std::vector<std::uint8_t> fails;
-  fails.resize(tilesW);
+  // Lamp by lamp over the row's tiles, kChunk at a time: the check's arithmetic on contiguous
+  // nodes (vectorised by the compiler: a scalar pass tile by tile cost ~13 % of a frame of a dozen
+  // lamps), its verdicts in a stack buffer (steady frames allocate nothing, on any thread).
+  constexpr std::size_t kChunk = 64;
+  std::uint8_t bad[kChunk];
+  auto maxf = [](float x, float y) { return x > y ? x : y; };
+  auto minf = [](float x, float y) { return x < y ? x : y; };
   for (std::size_t l = 0; l < nl; ++l) {
     const std::size_t o = l * plane + r * gw;
     const float* g0 = L.grid.data() + o;
@@ -1025,37 +1028,40 @@ void tileRow(const FastJob& J, std::size_t r) {
     const float* v0 = L.vmid.data() + o;
     const float* ce = L.centre.data() + o;
     const float floorL = L.floor[l];
-    std::uint8_t* bad = fails.data();
-    auto maxf = [](float x, float y) { return x > y ? x : y; };
-    auto minf = [](float x, float y) { return x < y ? x : y; };
-    for (std::size_t c = 0; c < tilesW; ++c) {
-      // The tile's corners, edge midpoints and centre (the 3 × 3 nodes of its half-cells).
-      const float n00 = g0[c], n20 = g0[c + 1], n02 = g1[c], n22 = g1[c + 1];
-      const float top = h0[c], bottom = h1[c], left = v0[c], right = v0[c + 1], ctr = ce[c];
-      float err = std::abs(ctr - 0.25f * (n00 + n20 + n02 + n22));
-      err = maxf(err, std::abs(top - 0.5f * (n00 + n20)));
-      err = maxf(err, std::abs(bottom - 0.5f * (n02 + n22)));
-      err = maxf(err, std::abs(left - 0.5f * (n00 + n02)));
-      err = maxf(err, std::abs(right - 0.5f * (n20 + n22)));
-      const float lo = minf(minf(minf(n00, n20), minf(n02, n22)), minf(minf(minf(top, bottom), minf(left, right)), ctr));
-      bad[c] = err > kCheckTolerance * maxf(lo, floorL) ? 1 : 0;
-    }
     const float ix = L.imageX[l], iy = L.imageY[l];
     const bool nearRow = iy >= yLo - margin && iy <= yHi + margin;
-    for (std::size_t c = 0; c < tilesW; ++c) {
-      std::uint8_t& flag = L.exact[(r * tilesW + c) * nl + l];
-      const float xLo = static_cast<float>(kCell * c) + 0.5f, xHi = xLo + kCell - 1.0f;
-      if (nearRow && ix >= xLo - margin && ix <= xHi + margin) {
-        flag = lamp_fx::kTileExact;
-      } else if (!bad[c]) {
-        flag = lamp_fx::kTileBilinear;
-      } else {
-        // The same check on the four half-cells (the bilinear error falls as the square of the
-        // spacing, so most tiles a few cells from a lamp's image pass it): the table at their
-        // centres and edge midpoints, 16 points, against each half-cell's corners among the
-        // tile's 3 × 3 nodes N[b][a] (a along x, b along y, kCell / 2 apart).
-        const float N[3][3] = {{g0[c], h0[c], g0[c + 1]}, {v0[c], ce[c], v0[c + 1]}, {g1[c], h1[c], g1[c + 1]}};
-        flag = halfCellsPass(J, l, xLo, yLo, N) ? lamp_fx::kTileHalf : lamp_fx::kTileExact;
+    for (std::size_t c0 = 0; c0 < tilesW; c0 += kChunk) {
+      const std::size_t n = std::min(kChunk, tilesW - c0);
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t c = c0 + i;
+        // The tile's corners, edge midpoints and centre (the 3 × 3 nodes of its half-cells).
+        const float n00 = g0[c], n20 = g0[c + 1], n02 = g1[c], n22 = g1[c + 1];
+        const float top = h0[c], bottom = h1[c], left = v0[c], right = v0[c + 1], ctr = ce[c];
+        float err = std::abs(ctr - 0.25f * (n00 + n20 + n02 + n22));
+        err = maxf(err, std::abs(top - 0.5f * (n00 + n20)));
+        err = maxf(err, std::abs(bottom - 0.5f * (n02 + n22)));
+        err = maxf(err, std::abs(left - 0.5f * (n00 + n02)));
+        err = maxf(err, std::abs(right - 0.5f * (n20 + n22)));
+        const float lo =
+            minf(minf(minf(n00, n20), minf(n02, n22)), minf(minf(minf(top, bottom), minf(left, right)), ctr));
+        bad[i] = err > kCheckTolerance * maxf(lo, floorL) ? 1 : 0;
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t c = c0 + i;
+        std::uint8_t& flag = L.exact[(r * tilesW + c) * nl + l];
+        const float xLo = static_cast<float>(kCell * c) + 0.5f, xHi = xLo + kCell - 1.0f;
+        if (nearRow && ix >= xLo - margin && ix <= xHi + margin) {
+          flag = lamp_fx::kTileExact;
+        } else if (!bad[i]) {
+          flag = lamp_fx::kTileBilinear;
+        } else {
+          // The same check on the four half-cells (the bilinear error falls as the square of the
+          // spacing, so most tiles a few cells from a lamp's image pass it): the table at their
+          // centres and edge midpoints, 16 points, against each half-cell's corners among the
+          // tile's 3 × 3 nodes N[b][a] (a along x, b along y, kCell / 2 apart).
+          const float N[3][3] = {{g0[c], h0[c], g0[c + 1]}, {v0[c], ce[c], v0[c + 1]}, {g1[c], h1[c], g1[c + 1]}};
+          flag = halfCellsPass(J, l, xLo, yLo, N) ? lamp_fx::kTileHalf : lamp_fx::kTileExact;
+        }
       }
     }
   }
