@@ -401,6 +401,27 @@ TEST(PathTracer, LampGuidingIsUnbiased) {
   }
 }
 
+// The guide's density exactly towards a lamp is infinite (the sample's balance weight 0). It was
+// 0 there: a guided direction whose sin ψ rounded to 0 (ψ below ~1e-8, once in ~1e8 draws) kept
+// the full weight β f_s / p_P, and its segment through the lamp returned ∝ 1/h at h's 1e-9 m floor
+// (one fog-mie path 4.4e8 cd/m² against a frame mean of 0.6: docs/physics.md). Next to the lamp the
+// density is the single lamp's 1 / (π² sin ψ).
+TEST(PathTracer, GuideDensityIsInfiniteExactlyTowardsALamp) {
+  const Lamp lamp = lampAt(Vec3(30, 0, 1.5), isotropic(1000.0));
+  auto pt = PathTracer::build({lamp}, fog(0.06, 1.0, hg(0.85)));
+  ASSERT_TRUE(pt.has_value());
+  const Vec3 x(0, 0, 1.5);  // level with the lamp: the direction to it is exactly +x, sin ψ = 0
+  const Vec3 a = glm::normalize(lamp.position_m - x);
+  EXPECT_TRUE(std::isinf(pt->guideDensity(x, a)));
+  const Vec3 side = glm::normalize(glm::cross(a, Vec3(0, 0, 1)));
+  for (double psi : {1e-9, 1e-4, 0.1, 1.0}) {
+    const Vec3 w = glm::normalize(std::cos(psi) * a + std::sin(psi) * side);
+    const double expected = 1.0 / (kPi * kPi * std::sin(psi));
+    EXPECT_NEAR(pt->guideDensity(x, w), expected, 1e-6 * expected) << psi;
+  }
+  EXPECT_EQ(pt->guideDensity(x, -a), 0.0);  // the hemisphere away from the lamp
+}
+
 // Ring table (docs/physics.md): mean luminance in rings about an isotropic lamp seen from K_t R =
 // 1.8 and 4.5 (g = 0.85, Ω = 1), single against all orders — how much multiple scattering adds
 // around a lamp in view. Directions uniform in solid angle within each ring. Asserted: the

@@ -31,11 +31,14 @@ void basis(const Vec3& n, Vec3& b1, Vec3& b2) noexcept {
   b2 = Vec3(b, sign + n.y * n.y * a, -n.y);
 }
 
-Vec3 aroundAxis(const Vec3& axis, double cosTheta, double phi) noexcept {
+Vec3 aroundAxis(const Vec3& axis, double cosTheta, double sinTheta, double phi) noexcept {
   Vec3 b1, b2;
   basis(axis, b1, b2);
-  const double sinTheta = std::sqrt(std::max(0.0, 1.0 - cosTheta * cosTheta));
   return glm::normalize(sinTheta * std::cos(phi) * b1 + sinTheta * std::sin(phi) * b2 + cosTheta * axis);
+}
+
+Vec3 aroundAxis(const Vec3& axis, double cosTheta, double phi) noexcept {
+  return aroundAxis(axis, cosTheta, std::sqrt(std::max(0.0, 1.0 - cosTheta * cosTheta)), phi);
 }
 
 }  // namespace
@@ -98,6 +101,58 @@ struct PathTracer::PhaseTable {
   }
 };
 
+// The scattering angle α of a lamp connection along a segment, for the phase-angle half of NEE's
+// mixture (segmentNee): on the segment x + t ω the lamp at S is seen at θ = atan((t − δ)/h) from
+// the closest approach (h its distance, δ where it is), and the light the lamp sends to the point
+// scatters towards −ω by α = π/2 + θ (cos α = −sin θ). The integrand holds p(cos α) dt and
+// dt = (r²/h) dα, so drawing α ∝ p(cos α) over the segment's window [π/2 + θ_a, π/2 + θ_b] puts
+// samples where the phase function's forward peak meets the segment (light running back along
+// it from a lamp ahead): fog-mie's diffraction peak (~1° wide, p(1) of several hundred per sr) is
+// missed by the equiangular point, which spreads its samples uniformly in θ (docs/physics.md,
+// "Variance near lamps": σ in fog-mie's rings 2–5× smaller at the same paths).
+// Density piecewise constant in α on cells α_i = π (i/n)² (crowding the peak); C(α) its integral.
+struct PathTracer::AngleTable {
+  static constexpr int kCells = 4096;
+  std::vector<double> alpha, cdf, density;  // nodes (kCells + 1), C at nodes, p per cell
+
+  explicit AngleTable(const Phase& phase) {
+    alpha.resize(kCells + 1);
+    cdf.assign(kCells + 1, 0.0);
+    density.resize(kCells);
+    for (int i = 0; i <= kCells; ++i) {
+      const double u = static_cast<double>(i) / kCells;
+      alpha[static_cast<std::size_t>(i)] = kPi * u * u;
+    }
+    for (std::size_t i = 0; i < density.size(); ++i) {
+      const double a = alpha[i], b = alpha[i + 1];
+      // The cell's mean of p (Simpson), so that C is the integral of p to within the fit.
+      density[i] = (evalPhase(phase, std::cos(a)) + 4.0 * evalPhase(phase, std::cos(0.5 * (a + b))) +
+                    evalPhase(phase, std::cos(b))) / 6.0;
+      cdf[i + 1] = cdf[i] + density[i] * (b - a);
+    }
+  }
+  [[nodiscard]] std::size_t cell(double a) const noexcept {
+    a = std::clamp(a, 0.0, kPi);
+    auto i = static_cast<std::size_t>(std::min(std::sqrt(a / kPi) * kCells, kCells - 1.0));
+    while (i > 0 && a < alpha[i]) --i;  // rounding of the root at a node: settle on the bracket
+    while (i + 1 < density.size() && a >= alpha[i + 1]) ++i;
+    return i;
+  }
+  [[nodiscard]] double integral(double a) const noexcept {
+    a = std::clamp(a, 0.0, kPi);
+    const std::size_t i = cell(a);
+    return cdf[i] + density[i] * (a - alpha[i]);
+  }
+  [[nodiscard]] double at(double a) const noexcept { return density[cell(a)]; }
+  // α with C(α) = c (C(0) ≤ c ≤ C(π)).
+  [[nodiscard]] double inverse(double c) const noexcept {
+    auto it = std::upper_bound(cdf.begin(), cdf.end(), c);
+    std::size_t i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - cdf.begin())) - 1;
+    i = std::min(i, density.size() - 1);
+    return density[i] > 0.0 ? std::clamp(alpha[i] + (c - cdf[i]) / density[i], alpha[i], alpha[i + 1]) : alpha[i];
+  }
+};
+
 Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medium,
                                      std::optional<GroundPlane> ground, const PathTracerOptions& options) {
   if (auto st = medium.validate(); !st) return st.error();
@@ -123,6 +178,9 @@ Result<PathTracer> PathTracer::build(std::vector<Lamp> lamps, const Medium& medi
   t.medium_ = medium;
   t.ground_ = ground;
   t.options_ = options;
+  // An isotropic phase function's angle density is the equiangular one: no table, NEE's point
+  // stays equiangular (and the path streams as they were before the mixture).
+  if (!std::holds_alternative<IsotropicPhase>(medium.phase)) t.angleTable_ = std::make_shared<const AngleTable>(medium.phase);
   if (options.tabulate_all_phases || std::holds_alternative<FogMiePhase>(medium.phase)) {
     t.phaseKind_ = 2;
     t.phaseTable_ = std::make_shared<const PhaseTable>(medium.phase, options.phase_table_nodes);
@@ -215,10 +273,20 @@ double PathTracer::guidePdf(const Vec3& x, const Vec3& w, double weightSum) cons
     const Vec3 a = lamps_[l].position_m - x;
     if (!(glm::dot(a, w) > 0.0)) continue;  // the cone is the hemisphere towards the lamp
     const double s = glm::length(glm::cross(w, a)) / glm::length(a);  // sin ψ
-    if (!(s > 0.0)) continue;
+    // Exactly at the lamp (sin ψ rounds to 0) the density is infinite: the sample's balance
+    // weight is 0. Skipping the lamp instead left p_G = 0 there, and the segment through the lamp
+    // (h at its 1e-9 m floor) gave one path 4.4e8 cd/m² in a frame whose mean is 0.6 (fog-mie,
+    // 1 000 000 paths: docs/physics.md).
+    if (!(s > 0.0)) return kInf;
     sum += c / (kPi * kPi * s);
   }
   return sum / weightSum;
+}
+
+double PathTracer::guideDensity(const Vec3& x, const Vec3& w) const noexcept {
+  double weightSum = 0.0;
+  for (std::size_t l = 0; l < lamps_.size(); ++l) weightSum += guideWeight(l, x);
+  return weightSum > 0.0 ? guidePdf(x, w, weightSum) : 0.0;
 }
 
 Vec3 PathTracer::sampleGuide(const Vec3& x, double weightSum, PathRng& rng) const noexcept {
@@ -236,7 +304,9 @@ Vec3 PathTracer::sampleGuide(const Vec3& x, double weightSum, PathRng& rng) cons
   }
   const Vec3 a = glm::normalize(lamps_[pick].position_m - x);
   const double psi = 0.5 * kPi * rng.uniform();
-  return aroundAxis(a, std::cos(psi), 2.0 * kPi * rng.uniform());
+  // sin ψ as drawn, not from cos ψ: below ψ ≈ 1e-8 cos ψ rounds to 1 and the direction would be
+  // the lamp's own, whose segment passes through the lamp (guidePdf then has sin ψ = 0).
+  return aroundAxis(a, std::cos(psi), std::sin(psi), 2.0 * kPi * rng.uniform());
 }
 
 PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
@@ -273,11 +343,17 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
     out.rgb += value * lamps_[l].color;
   };
 
-  // NEE along the segment x + t dir, t ∈ [0, T), per lamp, two samples combined by the balance
-  // heuristic (Veach 1997; Kulla & Fajardo 2012): the equiangular point t_A (pdf
-  // h / ((θ_b − θ_a) r²), which cancels the 1/r² of a lamp near the segment) and the collision
-  // point t_C (density pdfC(t); present when `collided`). Each gives f(t) / (p_A(t) + p_C(t));
-  // their sum is an unbiased estimate of ∫_0^T f dt. Scaled by `weight`.
+  // NEE along the segment x + t dir, t ∈ [0, T), per lamp: two samples combined by the balance
+  // heuristic (Veach 1997; Kulla & Fajardo 2012), the collision point t_C (density pdfC(t);
+  // present when `collided`) and a point t_M drawn from an even mixture of two densities over
+  // the segment's window (one-sample MIS over the mixture): the equiangular density
+  // p_A = h / ((θ_b − θ_a) r²), which cancels the 1/r² of a lamp near the segment, and the
+  // phase-angle density p_P = p̃(α) h / (ΔC r²) (α ∝ p(cos α): AngleTable), which follows the
+  // phase function's forward peak where the lamp's light runs back along the segment. Each point
+  // gives f(t) / (q(t) + p_C(t)), q = ½ p_A + ½ p_P; their sum is an unbiased estimate of
+  // ∫_0^T f dt. Scaled by `weight`. (Both densities as separate points, three lamp terms a
+  // segment, had the same variance in the forward peak and cost 1.7× per path: docs/physics.md.)
+  const AngleTable* angles = angleTable_.get();  // null for the isotropic phase: p_P = p_A
   auto segmentNee = [&](const Vec3& x, const Vec3& dir, double T, bool collided, double tc, auto&& pdfC, int order,
                         double weight) {
     for (std::size_t l = 0; l < lamps_.size(); ++l) {
@@ -289,17 +365,32 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
       const double tb = std::isfinite(T) ? std::atan2(T - delta, h) : 0.5 * kPi;
       const double span = tb - ta;
       if (!(span > 0.0)) continue;
-      auto pdfEqui = [&](double t) { return h / (span * (h * h + (t - delta) * (t - delta))); };
-      double tA = delta + h * std::tan(ta + rng.uniform() * span);
-      tA = std::clamp(tA, 0.0, std::isfinite(T) ? std::nextafter(T, 0.0) : kInf);
-      if (std::isfinite(tA)) {
-        const double f = lampTerm(l, x + tA * dir, dir, tA);
-        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(tA) + pdfC(tA)));
-      }
-      if (collided) {
-        const double f = lampTerm(l, x + tc * dir, dir, tc);
-        if (f > 0.0) addOrder(order, l, weight * f / (pdfEqui(tc) + pdfC(tc)));
-      }
+      const double cA = angles ? angles->integral(0.5 * kPi + ta) : 0.0;
+      const double mass = angles ? angles->integral(0.5 * kPi + tb) - cA : 0.0;
+      const double shareA = mass > 0.0 ? 0.5 : 1.0, shareP = 1.0 - shareA;
+      // q(t), both densities carrying h / r²; θ = atan((t − δ)/h) where known (NaN: computed).
+      auto pdfMix = [&](double t, double theta) {
+        const double dt = t - delta, r2 = h * h + dt * dt;
+        if (!(shareP > 0.0)) return h / (span * r2);
+        if (std::isnan(theta)) theta = std::atan2(dt, h);
+        return (shareA / span + shareP * angles->at(0.5 * kPi + theta) / mass) * h / r2;
+      };
+      auto sampleAt = [&](double t, double theta) {
+        const double f = lampTerm(l, x + t * dir, dir, t);
+        if (f > 0.0) addOrder(order, l, weight * f / (pdfMix(t, theta) + pdfC(t)));
+      };
+      const double tMax = std::isfinite(T) ? std::nextafter(T, 0.0) : kInf;
+      // One uniform picks the density and places the point in it (the stream stays one draw a
+      // segment and lamp, as with the equiangular point alone).
+      const double xi = rng.uniform();
+      const double theta = xi < shareA ? ta + (xi / shareA) * span
+                                       : angles->inverse(cA + ((xi - shareA) / shareP) * mass) - 0.5 * kPi;
+      const double tRaw = delta + h * std::tan(theta);
+      const double tM = std::clamp(tRaw, 0.0, tMax);
+      // θ again only where the clamp moved the point (rounding at the window's ends).
+      const double unknown = std::numeric_limits<double>::quiet_NaN();
+      if (std::isfinite(tM)) sampleAt(tM, tM == tRaw ? theta : unknown);
+      if (collided) sampleAt(tc, unknown);
     }
   };
 
@@ -328,7 +419,7 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
       const double fG = ground ? std::max(0.0, wG.z) / kPi : evalPhase(medium_.phase, glm::dot(forward, wG));
       const double T = groundDistance(x, wG);
       const double pdf = pdfP(wG) + q * guidePdf(x, wG, weightSum);
-      if (fG > 0.0 && T > 0.0 && pdf > 0.0)
+      if (fG > 0.0 && T > 0.0 && pdf > 0.0 && std::isfinite(pdf))
         segmentNee(x, wG, T, false, 0.0, [](double) { return 0.0; }, order, beta * fG / pdf);
     }
     const double pP = pdfP(wP);

@@ -18,8 +18,11 @@
 // scattering vertex) connects to every lamp by next-event estimation (NEE) — point lamps cannot be
 // hit — with two samples along the segment combined by the balance heuristic: the free-flight
 // collision point (sampled ∝ K_t e^{−K_t s}; forced into [0, D) on the camera ray by the truncated
-// exponential) and an equiangular point (pdf ∝ 1/r² towards that lamp), which keeps the variance
-// finite next to a lamp where 1/r² would make NEE at collision points alone infinite-variance.
+// exponential) and a point drawn from an even mixture of an equiangular density (pdf ∝ 1/r²
+// towards that lamp), which keeps the variance finite next to a lamp where 1/r² would make NEE at
+// collision points alone infinite-variance, and a density that follows the phase function of the
+// point's scattering angle (the lamp's light running back along the segment: fog-mie's forward
+// peak, which the equiangular density misses).
 // The collision point continues the path: albedo Ω as a weight, a new direction drawn from the
 // phase function (HG and isotropic exactly; fog-mie from an inverse-CDF table over the scattering
 // angle, weighted by p / pdf so the estimate stays unbiased). Ground hits (z = z0, Lambertian ρ)
@@ -182,6 +185,11 @@ class PathTracer {
   /// cos α and sin α ≥ 0 (the phase function itself for HG and isotropic; the inverse-CDF table's
   /// density for fog-mie). For estimators that combine phase sampling with other strategies.
   [[nodiscard]] double phaseSamplingPdf(double cosAngle, double sinAngle) const noexcept;
+  /// The density (1/sr) with which the lamp-guided NEE at x draws the unit direction w: the
+  /// lamps' mixture of 1 / (π² sin ψ) over the hemisphere towards each (ψ the angle from it),
+  /// +inf exactly towards a lit lamp (sin ψ rounds to 0), 0 where no lamp guides. Exposed for
+  /// tests. Thread-safe (const).
+  [[nodiscard]] double guideDensity(const Vec3& x, const Vec3& w) const noexcept;
 
  private:
   [[nodiscard]] double phasePdf(const Vec3& forward, const Vec3& w) const noexcept;
@@ -189,6 +197,7 @@ class PathTracer {
   [[nodiscard]] double guidePdf(const Vec3& x, const Vec3& w, double weightSum) const noexcept;
   [[nodiscard]] Vec3 sampleGuide(const Vec3& x, double weightSum, PathRng& rng) const noexcept;
   struct PhaseTable;  // inverse CDF over the scattering angle (path_tracer.cpp)
+  struct AngleTable;  // ∫ p(cos α) dα, NEE's phase-angle strategy (path_tracer.cpp)
   PathTracer() = default;
   std::vector<Lamp> lamps_;
   std::vector<Mat3> lampFromWorld_;
@@ -199,6 +208,7 @@ class PathTracer {
   std::optional<GroundPlane> ground_;
   PathTracerOptions options_;
   std::shared_ptr<const PhaseTable> phaseTable_;
+  std::shared_ptr<const AngleTable> angleTable_;
   double hgG_ = 0.0;
   int phaseKind_ = 0;  // 0 isotropic, 1 HG analytic, 2 table
   double diffusionD_ = 0.0, diffusionInvL_ = 0.0;
