@@ -664,7 +664,7 @@ struct LampEffects::Tables {
     std::vector<std::int32_t> fineFirst;          // per tile: its first lamp not kTileBilinear (nl: none)
     std::vector<std::array<std::size_t, 3>> modes;  // per tile row: its (tile, lamp) pairs by TileMode
     std::vector<float> imageX, imageY;            // per lamp: its image point, pixels (centre coordinates)
-    std::vector<float> weightTo, weightFrom;      // per lamp (LayerRow::weight_to, weight_from), padded to kCell
+    std::vector<float> weightTo, weightFrom;      // per lamp (LayerRow::weight_to, weight_from), kCell past the last
     bool fromSorted = false;
     int gw = 0, gh = 0;
   };
@@ -967,6 +967,24 @@ void gridRow(const FastJob& J, std::size_t r) {
   }
 }
 
+// The check of one cell, shared by the tiles (tileRow) and their half-cells (halfCellsPass):
+// the lamp's table at the cell's corners c00, c10, c01, c11, its centre and its edge midpoints;
+// true when the bilinear prediction misses the centre or a midpoint by more than the tolerance
+// relative to the smallest of the nine samples or the lamp's floor. Plain comparisons, no
+// initializer lists: tileRow's loop over a row of tiles stays vectorised.
+inline bool cellFails(float c00, float c10, float c01, float c11, float ctr, float top, float bottom, float left,
+                      float right, float floorL) {
+  auto maxf = [](float x, float y) { return x > y ? x : y; };
+  auto minf = [](float x, float y) { return x < y ? x : y; };
+  float err = std::abs(ctr - 0.25f * (c00 + c10 + c01 + c11));
+  err = maxf(err, std::abs(top - 0.5f * (c00 + c10)));
+  err = maxf(err, std::abs(bottom - 0.5f * (c01 + c11)));
+  err = maxf(err, std::abs(left - 0.5f * (c00 + c01)));
+  err = maxf(err, std::abs(right - 0.5f * (c10 + c11)));
+  const float lo = minf(minf(minf(c00, c10), minf(c01, c11)), minf(minf(minf(top, bottom), minf(left, right)), ctr));
+  return err > kCheckTolerance * maxf(lo, floorL);
+}
+
 // Whether lamp l's table is interpolated within the tolerance on each of the four half-cells
 // of the tile whose top-left node is at (x0, y0) (pixel-centre coordinates), N its 3 × 3 nodes:
 // the check of tileRow (centre and edge midpoints against the bilinear prediction, relative to
@@ -992,14 +1010,9 @@ bool halfCellsPass(const FastJob& J, std::size_t l, float x0, float y0, const fl
   const float* V = v + 10;  // V[b * 3 + a], a = 0 … 2
   for (int b = 0; b < 2; ++b)
     for (int a = 0; a < 2; ++a) {
-      const float c00 = N[b][a], c10 = N[b][a + 1], c01 = N[b + 1][a], c11 = N[b + 1][a + 1];
-      const float ctr = C[b * 2 + a], top = H[b * 2 + a], bottom = H[(b + 1) * 2 + a], left = V[b * 3 + a],
-                  right = V[b * 3 + a + 1];
-      const float err = std::max({std::abs(ctr - 0.25f * (c00 + c10 + c01 + c11)), std::abs(top - 0.5f * (c00 + c10)),
-                                  std::abs(bottom - 0.5f * (c01 + c11)), std::abs(left - 0.5f * (c00 + c01)),
-                                  std::abs(right - 0.5f * (c10 + c11))});
-      const float lo = std::min({c00, c10, c01, c11, ctr, top, bottom, left, right});
-      if (err > kCheckTolerance * std::max(lo, L.floor[l])) return false;
+      if (cellFails(N[b][a], N[b][a + 1], N[b + 1][a], N[b + 1][a + 1], C[b * 2 + a], H[b * 2 + a], H[(b + 1) * 2 + a],
+                    V[b * 3 + a], V[b * 3 + a + 1], L.floor[l]))
+        return false;
     }
   return true;
 }
@@ -1017,8 +1030,6 @@ void tileRow(const FastJob& J, std::size_t r) {
   // lamps), its verdicts in a stack buffer (steady frames allocate nothing, on any thread).
   constexpr std::size_t kChunk = 64;
   std::uint8_t bad[kChunk];
-  auto maxf = [](float x, float y) { return x > y ? x : y; };
-  auto minf = [](float x, float y) { return x < y ? x : y; };
   for (std::size_t l = 0; l < nl; ++l) {
     const std::size_t o = l * plane + r * gw;
     const float* g0 = L.grid.data() + o;
@@ -1035,16 +1046,7 @@ void tileRow(const FastJob& J, std::size_t r) {
       for (std::size_t i = 0; i < n; ++i) {
         const std::size_t c = c0 + i;
         // The tile's corners, edge midpoints and centre (the 3 × 3 nodes of its half-cells).
-        const float n00 = g0[c], n20 = g0[c + 1], n02 = g1[c], n22 = g1[c + 1];
-        const float top = h0[c], bottom = h1[c], left = v0[c], right = v0[c + 1], ctr = ce[c];
-        float err = std::abs(ctr - 0.25f * (n00 + n20 + n02 + n22));
-        err = maxf(err, std::abs(top - 0.5f * (n00 + n20)));
-        err = maxf(err, std::abs(bottom - 0.5f * (n02 + n22)));
-        err = maxf(err, std::abs(left - 0.5f * (n00 + n02)));
-        err = maxf(err, std::abs(right - 0.5f * (n20 + n22)));
-        const float lo =
-            minf(minf(minf(n00, n20), minf(n02, n22)), minf(minf(minf(top, bottom), minf(left, right)), ctr));
-        bad[i] = err > kCheckTolerance * maxf(lo, floorL) ? 1 : 0;
+        bad[i] = cellFails(g0[c], g0[c + 1], g1[c], g1[c + 1], ce[c], h0[c], h1[c], v0[c], v0[c + 1], floorL) ? 1 : 0;
       }
       for (std::size_t i = 0; i < n; ++i) {
         const std::size_t c = c0 + i;
