@@ -352,7 +352,7 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
   // phase function's forward peak where the lamp's light runs back along the segment. Each point
   // gives f(t) / (q(t) + p_C(t)), q = ½ p_A + ½ p_P; their sum is an unbiased estimate of
   // ∫_0^T f dt. Scaled by `weight`. (Both densities as separate points, three lamp terms a
-  // segment, had the same variance in the forward peak and cost 1.7× per path: docs/physics.md.)
+  // segment, had about the same variance and cost 1.7× per path: docs/physics.md.)
   const AngleTable* angles = angleTable_.get();  // null for the isotropic phase: p_P = p_A
   auto segmentNee = [&](const Vec3& x, const Vec3& dir, double T, bool collided, double tc, auto&& pdfC, int order,
                         double weight) {
