@@ -56,6 +56,20 @@ std::uint64_t PathRng::next() noexcept {
 // milliradians wide). Within an interval θ is drawn uniformly, so the sampled pdf is piecewise
 // constant in θ; the weight p / pdf corrects the tabulation error exactly (it stays in [0, ~2]
 // next to θ = 0, where sin θ → 0 but so does the interval's mass per radian).
+// The interval [x_i, x_{i+1}) holding a (clamped to [0, π]) of nodes x_i = π (i/n)², i = 0 … n
+// (`nodes`: n + 1 of them, n ≥ 1): i = ⌊n √(a/π)⌋ at most n − 1, then settled on the bracket, since
+// rounding of the root can put a node's own angle one interval off. PhaseTable and AngleTable.
+namespace {
+std::size_t squareNodeInterval(const std::vector<double>& nodes, double a) noexcept {
+  a = std::clamp(a, 0.0, kPi);
+  const double n = static_cast<double>(nodes.size() - 1);
+  auto i = static_cast<std::size_t>(std::min(std::sqrt(a / kPi) * n, n - 1.0));
+  while (i > 0 && a < nodes[i]) --i;
+  while (i + 2 < nodes.size() && a >= nodes[i + 1]) ++i;
+  return i;
+}
+}  // namespace
+
 struct PathTracer::PhaseTable {
   std::vector<double> theta, cdf;
 
@@ -91,12 +105,7 @@ struct PathTracer::PhaseTable {
   // The sampled density per radian at θ (the interval's, as sample() draws it): nodes are
   // θ_i = π (i/(n−1))², so the interval of θ is ⌊(n−1) √(θ/π)⌋.
   [[nodiscard]] double pdf(double th) const noexcept {
-    const double n1 = static_cast<double>(theta.size() - 1);
-    const double u = std::sqrt(std::clamp(th, 0.0, kPi) / kPi) * n1;
-    std::size_t i = static_cast<std::size_t>(std::min(u, n1 - 1.0));
-    // Rounding of the square root can put θ one interval off at a node: settle on the bracket.
-    while (i > 0 && th < theta[i]) --i;
-    while (i + 2 < theta.size() && th >= theta[i + 1]) ++i;
+    const std::size_t i = squareNodeInterval(theta, th);
     return (cdf[i + 1] - cdf[i]) / (theta[i + 1] - theta[i]);
   }
 };
@@ -131,13 +140,7 @@ struct PathTracer::AngleTable {
       cdf[i + 1] = cdf[i] + density[i] * (b - a);
     }
   }
-  [[nodiscard]] std::size_t cell(double a) const noexcept {
-    a = std::clamp(a, 0.0, kPi);
-    auto i = static_cast<std::size_t>(std::min(std::sqrt(a / kPi) * kCells, kCells - 1.0));
-    while (i > 0 && a < alpha[i]) --i;  // rounding of the root at a node: settle on the bracket
-    while (i + 1 < density.size() && a >= alpha[i + 1]) ++i;
-    return i;
-  }
+  [[nodiscard]] std::size_t cell(double a) const noexcept { return squareNodeInterval(alpha, a); }
   [[nodiscard]] double integral(double a) const noexcept {
     a = std::clamp(a, 0.0, kPi);
     const std::size_t i = cell(a);
@@ -283,9 +286,14 @@ double PathTracer::guidePdf(const Vec3& x, const Vec3& w, double weightSum) cons
   return sum / weightSum;
 }
 
-double PathTracer::guideDensity(const Vec3& x, const Vec3& w) const noexcept {
+double PathTracer::guideWeightSum(const Vec3& x) const noexcept {
   double weightSum = 0.0;
   for (std::size_t l = 0; l < lamps_.size(); ++l) weightSum += guideWeight(l, x);
+  return weightSum;
+}
+
+double PathTracer::guideDensity(const Vec3& x, const Vec3& w) const noexcept {
+  const double weightSum = guideWeightSum(x);
   return weightSum > 0.0 ? guidePdf(x, w, weightSum) : 0.0;
 }
 
@@ -409,8 +417,7 @@ PathSample PathTracer::trace(const Ray& ray, PathRng& rng) const {
   // the pdf cancels the 1/r²); the ground connection at a segment's end keeps the phase sample
   // alone (it has no 1/h).
   auto guidedNee = [&](const Vec3& x, const Vec3& forward, bool ground, const Vec3& wP, double beta, int order) {
-    double weightSum = 0.0;
-    for (std::size_t l = 0; l < lamps_.size(); ++l) weightSum += guideWeight(l, x);
+    const double weightSum = guideWeightSum(x);
     if (!(weightSum > 0.0)) return 1.0;
     constexpr double q = 1.0;  // one guided sample per vertex (see above)
     auto pdfP = [&](const Vec3& w) { return ground ? std::max(0.0, w.z) / kPi : phasePdf(forward, w); };

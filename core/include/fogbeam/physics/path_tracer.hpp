@@ -194,6 +194,7 @@ class PathTracer {
  private:
   [[nodiscard]] double phasePdf(const Vec3& forward, const Vec3& w) const noexcept;
   [[nodiscard]] double guideWeight(std::size_t lamp, const Vec3& x) const noexcept;
+  [[nodiscard]] double guideWeightSum(const Vec3& x) const noexcept;  // Σ_ℓ guideWeight(ℓ, x)
   [[nodiscard]] double guidePdf(const Vec3& x, const Vec3& w, double weightSum) const noexcept;
   [[nodiscard]] Vec3 sampleGuide(const Vec3& x, double weightSum, PathRng& rng) const noexcept;
   struct PhaseTable;  // inverse CDF over the scattering angle (path_tracer.cpp)
