@@ -460,5 +460,81 @@ TEST(AirlightKernels, ViewTableMatchesAccurateAndScalar) {
       });
 }
 
+// Wide views (fogbeam render of a 170° camera never finished, one of 179.999° ran out of memory:
+// the nodes are uniform in the tangent plane, 24 million directions at 0.2°): the frustum table
+// keeps at most kMaxDirections directions, coarser where it must (viewTableStep). A view 120°
+// wide keeps 0.2°; one 150° wide gets ~0.42° at the centre and is checked against the accurate
+// method per ray (the figure docs/airlight.md gives).
+TEST(AirlightKernels, WideViewsKeepTheViewTableBounded) {
+  using kernels::ViewTable;
+  // Views up to ~100° wide at 16:9 keep the step asked for.
+  EXPECT_EQ(ViewTable::viewTableStep(0.2, 2.0 * std::tan(radians(30.0)), 2.0 * std::tan(radians(30.0)) * 9.0 / 16.0),
+            std::tan(radians(0.2)));
+  const double t60 = std::tan(radians(60.0));
+  EXPECT_EQ(ViewTable::viewTableStep(0.2, 2.0 * t60, 2.0 * t60 * 9.0 / 16.0), std::tan(radians(0.2)));  // 120°
+  auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
+  ASSERT_TRUE(low.has_value());
+  Lamp lamp;
+  lamp.position_m = {2.0, 0.7, 0.65};
+  lamp.worldFromLamp = worldFromYawPitchRoll(0.0, radians(0.57), 0.0);
+  lamp.profile = *low;
+  auto ev = AirlightEvaluator::build(lamp, fog(0.85), AirlightMethod::Accurate);
+  ASSERT_TRUE(ev.has_value());
+  ThreadPool pool(2);
+  auto camera = [](int w, int h, double fovDeg) {
+    Camera c;
+    c.position_m = {0.0, 0.35, 1.2};
+    c.width = w;
+    c.height = h;
+    c.fov_x = radians(fovDeg);
+    return c;
+  };
+  // 170° and 179.999° wide, and 2 × 1000 px at 60° (179.6° high): a few distances suffice to
+  // show the size; the nodes are those of any table of that view.
+  PencilOptions po;
+  po.spoke_tolerance = 0.0;
+  auto pencil = PencilAirlight::build(*ev, camera(1, 1, 60.0).position_m, po);  // every camera's eye
+  ASSERT_TRUE(pencil.has_value());
+  for (const Camera& cam : {camera(320, 180, 170.0), camera(320, 180, 179.999), camera(2, 1000, 60.0)}) {
+    const ViewTable vt = ViewTable::build(*ev, cam, 0.2, 4, pool, 0.0, &*pencil);
+    const std::size_t dirs = static_cast<std::size_t>(vt.nA) * static_cast<std::size_t>(vt.nB);
+    // The bound less the nodes of margin (3 a side): at most a quarter more where one side is narrow.
+    EXPECT_LE(dirs, ViewTable::kMaxDirections * 5 / 4) << cam.width << "x" << cam.height << " at " << cam.fov_x;
+    EXPECT_GT(dirs, ViewTable::kMaxDirections / 2);
+    for (float v : vt.data) ASSERT_TRUE(std::isfinite(v));
+  }
+  // 150° at 16:9: 2.6 million directions at 0.2°, kMaxDirections at the spacing it gets.
+  const Camera cam = camera(320, 180, 150.0);
+  const ViewTable vt = ViewTable::build(*ev, cam, 0.2, 48, pool, 0.0, &*pencil);
+  const double stepDeg = degrees(std::atan(1.0 / static_cast<double>(vt.invStep)));
+  EXPECT_GT(stepDeg, 0.35);
+  EXPECT_LT(stepDeg, 0.5);
+  const double f = cam.focalLengthPixels();
+  const Batch b = randomPixels(12000, cam.width, cam.height, 11);
+  std::vector<double> want(b.n), rel;
+  for (std::size_t i = 0; i < b.n; ++i) {
+    const Ray ray{cam.position_m, cam.rayDirection(static_cast<double>(b.x[i]), static_cast<double>(b.y[i])),
+                  static_cast<double>(b.d[i])};
+    want[i] = ev->evaluate(ray);
+  }
+  // Over the pixels above 1 % of the 99.5th percentile, outside the disc of 15 steps about the
+  // lamp's image, where the renderer reads insets and rays instead (buildLampViewTables).
+  const Vec3 lampInCam = glm::transpose(cam.worldFromCamera) * (lamp.position_m - cam.position_m);
+  const double la = lampInCam.y / lampInCam.x, lb = lampInCam.z / lampInCam.x, guard = 15.0 / static_cast<double>(vt.invStep);
+  const double p995 = percentile(want, 0.995);
+  for (std::size_t i = 0; i < b.n; ++i) {
+    if (!(want[i] > 1e-2 * p995)) continue;
+    const double a = (0.5 * cam.width - static_cast<double>(b.x[i])) / f, bb = (0.5 * cam.height - static_cast<double>(b.y[i])) / f;
+    if ((a - la) * (a - la) + (bb - lb) * (bb - lb) <= guard * guard) continue;
+    rel.push_back(std::abs(vt.lookup(a, bb, static_cast<double>(b.d[i])) - want[i]) / want[i]);
+  }
+  ASSERT_GT(rel.size(), 300u);
+  std::printf("  150 deg view: step %.3f deg at the centre, %d x %d directions; vs accurate median %.2e, p95 %.2e, "
+              "max %.2e over %zu rays (build %.2f s, %.1f MB)\n",
+              stepDeg, vt.nA, vt.nB, percentile(rel, 0.5), percentile(rel, 0.95), percentile(rel, 1.0), rel.size(),
+              vt.build_seconds, static_cast<double>(vt.bytes()) / 1e6);
+  EXPECT_LT(percentile(rel, 0.95), 0.02);
+}
+
 }  // namespace
 }  // namespace fogbeam

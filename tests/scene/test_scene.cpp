@@ -356,6 +356,26 @@ TEST(SceneFileErrors, UnknownProfileOrPhase) {
                "\"rayleigh\"");
 }
 
+// Found by a sweep of odd scenes (2026-11-29): each message names the key and line the file
+// wrote and the value as written.
+TEST(SceneFileErrors, ValuesAreShownAsWrittenAtTheirKey) {
+  // A float where an integer is expected reads as a float.
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nextinction_per_m = 0.04\n[camera]\nposition_m = [0, 0, 1]\nwidth = 320.0\nheight = 36\n"),
+               "bad.toml:5: [camera] width: expected an integer in [1, 16384], found 320.0");
+  // A visibility whose extinction overflows is the visibility's error, at its line.
+  EXPECT_PRED2(Contains,
+               errorOf("[fog]\nvisibility_m = 1e-320\n[camera]\nposition_m = [0, 0, 1]\nwidth = 4\nheight = 4\n"),
+               "bad.toml:2: [fog] visibility_m: expected a number > 0 whose extinction ln(20) / visibility_m is finite, "
+               "found ");
+  // A tiny normal is a direction (its length squared underflows), a zero one an error.
+  const Scene tiny = parse(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 1e-300]\n");
+  ASSERT_EQ(tiny.planes.size(), 1u);
+  EXPECT_EQ(tiny.planes[0].normal, Vec3(0.0, 0.0, 1.0));
+  EXPECT_PRED2(Contains, errorOf(kFogAndCamera + "[[plane]]\npoint_m = [0, 0, 0]\nnormal = [0, 0, 0]\n"),
+               "bad.toml:9: [[plane]] #1 normal: expected a non-zero vector, found [0, 0, 0]");
+}
+
 TEST(SceneFileErrors, ProfileFileNotFoundNamesSceneLineAndResolvedPath) {
   const std::string resolved = (std::filesystem::path(kScenes) / "no_such_lamp.ies").lexically_normal().string();
   EXPECT_PRED2(Contains,

@@ -40,6 +40,10 @@ TEST(Files, CheckFileRefusesWhatIsNotARegularFile) {
   EXPECT_EQ(checkFile("/dev/zero"), "not a regular file: /dev/zero");
   EXPECT_EQ(checkFile("/tmp"), "not a regular file: /tmp");
   EXPECT_EQ(checkFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies"), "");
+  // A relative path is named where it was looked for (a scene given as `night.toml` names
+  // `nope.ies`, which alone does not say where).
+  EXPECT_EQ(checkFile("nope/x.ies"),
+            "file not found: " + (std::filesystem::current_path() / "nope/x.ies").lexically_normal().string());
 }
 
 }  // namespace

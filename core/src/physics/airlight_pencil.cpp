@@ -582,6 +582,12 @@ void PencilAirlight::mergeSmoothPieces(std::vector<Piece>& pieces) const {
 
 void PencilAirlight::evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n,
                                         double* out) const {
+  integrateCumulative(direction, distances, n, out);
+  for (std::size_t m = 0; m < n; ++m) out[m] = std::max(out[m], 0.0);
+}
+
+void PencilAirlight::integrateCumulative(const Vec3& direction, const double* distances, std::size_t n,
+                                         double* out) const {
   std::fill(out, out + n, 0.0);
   if (negligible_) return;
   const AirlightEvaluator& ev = *lamp_;

@@ -291,22 +291,40 @@ ViewTableUse ViewTableUse::of(const ViewTable& t) noexcept {
 
 ViewTable ViewTable::build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
                            ThreadPool& pool, double distanceScale, const PencilAirlight* pencil) {
-  const double step = std::tan(radians(stepDeg));
+  // The window of the tangent plane the frustum spans, a ∈ [aLo, aHi], b ∈ [bLo, bHi]. Centred:
+  // ±tan(fov_x/2) and ±that × H/W (square pixels). Off-axis: pixel x ∈ [0, W] maps to
+  // a = (cx − x)/f ∈ [(cx − W)/f, cx/f] = [−tan right, tan left] and y ∈ [0, H] to
+  // b = (cy − y)/f ∈ [(cy − H)/f, cy/f] = [−tan down, tan up] (PixelGeometry).
+  double aLo, aHi, bLo, bHi;
   if (camera.isCentred()) {
-    const double ta = std::tan(0.5 * camera.fov_x);
-    const double tb = ta * camera.height / camera.width;  // square pixels
-    // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
-    return buildWindow(lamp, camera, -ta - step, -tb - step, static_cast<int>(std::ceil(2 * ta / step)) + 3,
-                       static_cast<int>(std::ceil(2 * tb / step)) + 3, step, nX, pool, distanceScale, pencil);
+    aHi = std::tan(0.5 * camera.fov_x);
+    bHi = aHi * camera.height / camera.width;
+    aLo = -aHi;
+    bLo = -bHi;
+  } else {
+    const double f = camera.focalLengthPixels();
+    const Vec2 c = camera.principalPoint();
+    aLo = (c.x - camera.width) / f;
+    aHi = c.x / f;
+    bLo = (c.y - camera.height) / f;
+    bHi = c.y / f;
   }
-  // Off-axis: pixel x ∈ [0, W] maps to a = (cx − x)/f ∈ [(cx − W)/f, cx/f] = [−tan right, tan left]
-  // and y ∈ [0, H] to b = (cy − y)/f ∈ [(cy − H)/f, cy/f] = [−tan down, tan up] (PixelGeometry).
-  const double f = camera.focalLengthPixels();
-  const Vec2 c = camera.principalPoint();
-  const double aLo = (c.x - camera.width) / f, aHi = c.x / f;
-  const double bLo = (c.y - camera.height) / f, bHi = c.y / f;
+  const double step = viewTableStep(stepDeg, aHi - aLo, bHi - bLo);
+  // One node of margin beyond the frustum on each side, so that edge pixels interpolate.
   return buildWindow(lamp, camera, aLo - step, bLo - step, static_cast<int>(std::ceil((aHi - aLo) / step)) + 3,
                      static_cast<int>(std::ceil((bHi - bLo) / step)) + 3, step, nX, pool, distanceScale, pencil);
+}
+
+double ViewTable::viewTableStep(double stepDeg, double spanA, double spanB) noexcept {
+  // The nodes are uniform in the tangent plane, so their angular spacing at an angle θ from the
+  // view axis is step · cos² θ: a view 120° wide at 16:9 needs 9× the nodes of one 60° wide for
+  // the same spacing at the centre, and one 170° wide ~400× (24 million directions, 9 GB at
+  // 48 distances: the build never ended). Past kMaxDirections the step grows until the table
+  // holds that many (~230 MB a lamp): views up to ~120° wide at 16:9 keep stepDeg.
+  double step = std::tan(radians(stepDeg));
+  const double n = (spanA / step) * (spanB / step);
+  if (n > static_cast<double>(kMaxDirections)) step *= std::sqrt(n / static_cast<double>(kMaxDirections));
+  return step;
 }
 
 ViewTable ViewTable::buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0, double b0, int nA,

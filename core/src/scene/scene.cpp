@@ -12,7 +12,9 @@
 #include <fogbeam/scene/sections.hpp>
 #include <fogbeam/util/files.hpp>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -128,8 +130,11 @@ Plane parsePlane(const Section& s) {
   Plane pl;
   pl.point_m = vec3(s, "point_m");
   const Vec3 n = vec3(s, "normal");
-  if (!(glm::length(n) > 0.0)) s.failAt(*s.find("normal"), "normal", "expected a non-zero vector, found [0, 0, 0]");
-  pl.normal = glm::normalize(n);
+  // Scaled by its largest component first: |n|² of [0, 0, 1e-300] underflows to 0, yet it is a
+  // direction.
+  const double big = std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)});
+  if (!(big > 0.0)) s.failAt(*s.find("normal"), "normal", "expected a non-zero vector, found [0, 0, 0]");
+  pl.normal = glm::normalize(n / big);
   pl.reflectance = s.number("reflectance", kUnit, kDefaultReflectance);
   return pl;
 }

@@ -150,6 +150,11 @@ Medium parseFog(const Section& s, std::span<const KeySpec> extraKeys) {
     m.extinction_per_m = s.numberOf(*ext, "extinction_per_m", kPositive);
   } else if (vis) {
     m.extinction_per_m = extinctionFromVisibility(s.numberOf(*vis, "visibility_m", kPositive));
+    // A visibility so small that ln 20 / V overflows (V = 1e-320 m) is the key's error, not one of
+    // an extinction the file never named.
+    if (!std::isfinite(m.extinction_per_m))
+      s.failAt(*vis, "visibility_m",
+               "expected a number > 0 whose extinction ln(20) / visibility_m is finite, found " + describeNode(*vis));
   } else {
     s.fail(s.line(), "", "missing extinction_per_m or visibility_m (exactly one is required)");
   }

@@ -30,8 +30,16 @@ std::string resolvePath(const std::string& baseDir, const std::string& relative)
 std::string checkFile(const std::string& path) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
-  if (ec || !fs::exists(st)) return "file not found: " + path;
-  if (!fs::is_regular_file(st)) return "not a regular file: " + path;
+  // A relative path (a file named relative to a configuration given by a relative path) is
+  // named as the directory it was looked for in makes it: "nope.ies" alone does not say where.
+  std::string shown = path;
+  if (const fs::path p(path); p.is_relative()) {
+    std::error_code aec;
+    const fs::path abs = fs::absolute(p, aec);
+    if (!aec) shown = abs.lexically_normal().string();
+  }
+  if (ec || !fs::exists(st)) return "file not found: " + shown;
+  if (!fs::is_regular_file(st)) return "not a regular file: " + shown;
   return {};
 }
 

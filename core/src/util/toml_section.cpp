@@ -24,7 +24,12 @@ std::string inQuotes(std::string_view s) { return "\"" + std::string(s) + "\""; 
 // What a node holds, for "found …": a value as written, or its kind.
 std::string describeNode(const toml::node& n) {
   if (const auto* v = n.as_integer()) return std::to_string(v->get());
-  if (const auto* v = n.as_floating_point()) return formatNumber(v->get());
+  if (const auto* v = n.as_floating_point()) {
+    // As a float: "found 320.0" where an integer is expected, not "found 320".
+    std::string t = formatNumber(v->get());
+    if (t.find_first_of(".eEin") == std::string::npos) t += ".0";
+    return t;
+  }
   if (const auto* v = n.as_string()) return "the string " + inQuotes(v->get());
   if (const auto* v = n.as_boolean()) return std::string("the boolean ") + (v->get() ? "true" : "false");
   if (const auto* v = n.as_array()) return "an array of " + std::to_string(v->size()) + " elements";

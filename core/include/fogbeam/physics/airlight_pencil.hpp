@@ -108,7 +108,9 @@ class PencilAirlight {
   /// L_m (white light, cd/m²) along the ray from the eye in `direction` (unit) up to each of
   /// `n` ascending distances (metres, +inf allowed), into out[0..n).
   /// Falls back to the evaluator's own evaluateCumulative where the G table ends (k > k_max,
-  /// rays grazing a very distant lamp) and for rays through the lamp.
+  /// rays grazing a very distant lamp) and for rays through the lamp. ≥ 0: where a spoke's
+  /// quadratic pieces dip below 0 next to a profile's dark region (a CSV grid's zeros) and the
+  /// ray's light is ~0, the dip is not passed on as negative light.
   void evaluateCumulative(const Vec3& direction, const double* distances, std::size_t n, double* out) const;
   /// L_m along one ray up to `distance_m` (+inf = sky).
   [[nodiscard]] double evaluate(const Vec3& direction, double distance_m) const;
@@ -116,6 +118,8 @@ class PencilAirlight {
   [[nodiscard]] const AirlightEvaluator& lamp() const noexcept { return *lamp_; }
 
  private:
+  // evaluateCumulative before its clamp at 0.
+  void integrateCumulative(const Vec3& direction, const double* distances, std::size_t n, double* out) const;
   struct Piece {
     double a, b;       // ψ range along the spoke's circle, radians (ψ = 0: towards the eye)
     double m;          // centre

@@ -146,7 +146,8 @@ struct ViewTable {
 
   /// Tabulates `lamp` (built with the accurate method) as seen from `camera`, covering its
   /// frustum (centred or off-axis) with `stepDeg` spacing (in angle at the view axis) and `nX`
-  /// distances.
+  /// distances; for frusta so wide that this spacing would need more than kMaxDirections
+  /// directions, the spacing that gives that many (viewTableStep).
   /// Runs on `pool`.
   /// `distanceScale` (metres) fixes D of x = d / (d + D); 0 picks defaultDistanceScale(). Tables
   /// of several lamps built with the same camera, step, nX and D share one grid (sameGrid) and
@@ -158,6 +159,13 @@ struct ViewTable {
   [[nodiscard]] static ViewTable build(const AirlightEvaluator& lamp, const Camera& camera, double stepDeg, int nX,
                                        ThreadPool& pool, double distanceScale = 0.0,
                                        const PencilAirlight* pencil = nullptr);
+  /// Directions a frustum table holds at most (~230 MB a lamp at 48 distances): a view 120° wide at
+  /// 16:9 (559 752 directions at 0.2°) keeps its step.
+  static constexpr std::size_t kMaxDirections = 589824;
+  /// The frustum table's node spacing in tangent units for `stepDeg` at the view axis over a
+  /// window spanA × spanB of the tangent plane: tan(stepDeg), or coarser where that would
+  /// exceed kMaxDirections nodes (views wider than ~120° at 16:9).
+  [[nodiscard]] static double viewTableStep(double stepDeg, double spanA, double spanB) noexcept;
   /// The same over a window of the tangent plane: nA × nB nodes from (a0, b0), spacing
   /// `step` in tangent units.
   [[nodiscard]] static ViewTable buildWindow(const AirlightEvaluator& lamp, const Camera& camera, double a0,

@@ -18,7 +18,9 @@ namespace fogbeam {
 [[nodiscard]] std::string resolvePath(const std::string& baseDir, const std::string& relative);
 
 /// Empty when `path` names a readable regular file, else what is wrong with it ("file not
-/// found: …", "not a regular file: …"): a profile or glTF path must not name /dev/zero.
+/// found: …", "not a regular file: …"): a profile or glTF path must not name /dev/zero. A
+/// relative `path` is named absolute (against the working directory), so that the message says
+/// where the file was looked for.
 [[nodiscard]] std::string checkFile(const std::string& path);
 
 }  // namespace fogbeam
