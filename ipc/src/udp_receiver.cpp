@@ -73,6 +73,10 @@ struct UdpReceiver::Impl {
   // The same for traffic objects refused by a full store (refusedObjects()).
   Clock::time_point lastRefusedLog{};
   std::uint64_t refusedSinceLog = 0;
+  // The same for sender restarts (a sender whose sequence keeps jumping back by more than
+  // restart_window, e.g. random sequence numbers, restarts with every datagram).
+  Clock::time_point lastRestartLog{};
+  std::uint64_t restartsSinceLog = 0;
 
   void drop(DropReason r, std::string_view field, const sockaddr_in& from) {
     const auto i = static_cast<std::size_t>(r);
@@ -134,9 +138,19 @@ struct UdpReceiver::Impl {
           drop(DropReason::OutOfOrder, "sequence", from);
           return false;
         }
-        std::lock_guard<std::mutex> lock(statsMutex);
-        ++stats.restarts;
-        spdlog::info("udp: sender {} restarted (sequence {} after {})", endpoint(from), h.sequence, t.last[type]);
+        {
+          std::lock_guard<std::mutex> lock(statsMutex);
+          ++stats.restarts;
+        }
+        // Counted each time, logged at most once per second with the count since the last line.
+        ++restartsSinceLog;
+        const auto now = Clock::now();
+        if (now - lastRestartLog >= std::chrono::seconds(1)) {
+          spdlog::info("udp: sender {} restarted (sequence {} after {}; {} restart(s) since the last line)",
+                       endpoint(from), h.sequence, t.last[type], restartsSinceLog);
+          lastRestartLog = now;
+          restartsSinceLog = 0;
+        }
       }
     }
     t.seen[type] = true;

@@ -81,7 +81,7 @@ struct StatusBoard {
     }
     o << "]"
       << ", \"udp\": {\"datagrams\": " << udp.datagrams << ", \"applied\": " << udp.applied
-      << ", \"traffic_refused\": " << udp.traffic_refused << ", \"dropped\": {";
+      << ", \"traffic_refused\": " << udp.traffic_refused << ", \"restarts\": " << udp.restarts << ", \"dropped\": {";
     bool first = true;
     for (std::size_t r = 0; r < ipc::kDropReasonCount; ++r) {
       if (udp.dropped[r] == 0) continue;

@@ -127,6 +127,28 @@ TEST(UdpReceiver, CountsDropsByReasonAndKeepsRunning) {
   EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kFrontFog);
 }
 
+// A sender whose sequence keeps jumping back by more than restart_window (random sequence
+// numbers, or one alternating between two counters: found by a sweep of the service's input,
+// 2026-11-29, when each such datagram logged a line) restarts again and again: each is applied
+// and counted, the log line rate-limited to one a second. Alternating 0 and 2^31 + 5000, the
+// jump to 2^31 + 5000 is 2^31 − 5000 behind in serial arithmetic (a restart), the jump back to 0
+// as far ahead (in order).
+TEST(UdpReceiver, EveryRestartIsCountedAndApplied) {
+  StateStore store;
+  auto rx = UdpReceiver::start(loopback(), store);
+  ASSERT_TRUE(rx);
+  Sender tx;
+  const std::uint16_t port = (*rx)->port();
+  constexpr std::uint32_t kFar = 0x80000000u + 5000u;  // 2^31 + 5000: "behind" in serial arithmetic
+  for (std::uint32_t k = 0; k < 200; ++k)
+    tx.send(datagram(LampState{k % 2 ? light::kLowBeam : light::kHighBeam, 0.0f}, k % 2 ? kFar : 0u), port);
+  ASSERT_TRUE(waitFor([&] { return (*rx)->stats().datagrams == 200; }));
+  const UdpStats st = (*rx)->stats();
+  EXPECT_EQ(st.applied, 200u);
+  EXPECT_EQ(st.restarts, 100u);
+  EXPECT_EQ(store.snapshot()->lamps.value.lights, light::kLowBeam);
+}
+
 TEST(UdpReceiver, AllowListRejectsOtherSenders) {
   StateStore store;
   UdpReceiverOptions o = loopback();

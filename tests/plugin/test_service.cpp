@@ -327,6 +327,7 @@ TEST(Service, StatusPortAnswersWithTheFrameAndInputFigures) {
   EXPECT_NE(json.find("\"input\": \"udp 127.0.0.1:"), std::string::npos) << json;
   EXPECT_EQ(jsonNumber(json, "datagrams").value_or(0), 2.0) << json;
   EXPECT_EQ(jsonNumber(json, "applied").value_or(0), 2.0) << json;
+  EXPECT_EQ(jsonNumber(json, "restarts").value_or(-1), 0.0) << json;
   EXPECT_NE(json.find("\"dropped\": {}"), std::string::npos) << json;
   EXPECT_TRUE(loop.finish());
 }

@@ -55,11 +55,20 @@ TEST(PixelPack, SimdPackerMatchesScalarOnEveryTarget) {
   rgb[0] = std::numeric_limits<float>::infinity();
   rgb[4] = 1e-7f;  // a subnormal half
   rgb[8] = 70000.0f;
+  rgb[12] = -std::numeric_limits<float>::infinity();
+  rgb[13] = std::nanf("");
+  alpha[7] = std::numeric_limits<float>::infinity();
   std::vector<std::uint16_t> want(4 * n);
   for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t c = 0; c < 3; ++c) want[4 * i + c] = floatToHalf(rgb[3 * i + c]);
-    want[4 * i + 3] = floatToHalf(alpha[i]);
+    for (std::size_t c = 0; c < 3; ++c) want[4 * i + c] = floatToHalf(clampToHalfRange(rgb[3 * i + c]));
+    want[4 * i + 3] = floatToHalf(clampToHalfRange(alpha[i]));
   }
+  // Beyond the half's range the frame saturates (65504, 0x7BFF), never +inf; NaN packs as 0.
+  EXPECT_EQ(want[0], 0x7BFF);   // +inf
+  EXPECT_EQ(want[10], 0x7BFF);  // 70000 (pixel 2, channel 2)
+  EXPECT_EQ(want[4 * 4 + 0], 0xFBFF);  // −inf (pixel 4, channel 0)
+  EXPECT_EQ(want[4 * 4 + 1], 0x0000);  // NaN
+  EXPECT_EQ(want[4 * 7 + 3], 0x7BFF);  // alpha +inf
   for (const std::string& t : kernels::availableTargets()) {
     ASSERT_TRUE(kernels::forceTarget(t));
     std::vector<std::uint16_t> got(4 * n, 0xFFFF);

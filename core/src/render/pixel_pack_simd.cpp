@@ -29,18 +29,21 @@ void PackRgba16F(const float* rgb, const float* alpha, float alphaConstant, std:
   const hn::Rebind<hwy::float16_t, decltype(df)> dh;
   const hn::RebindToUnsigned<decltype(dh)> du;
   const std::size_t N = hn::Lanes(df);
+  // clampToHalfRange, a vector at a time: NaN lanes to 0 (Min and Max return an operand for them).
+  const auto kMax = hn::Set(df, kHalfMax), kMin = hn::Set(df, -kHalfMax);
+  auto clamp = [&](hn::Vec<decltype(df)> v) { return hn::IfThenZeroElse(hn::IsNaN(v), hn::Min(hn::Max(v, kMin), kMax)); };
   for (; i + N <= n; i += N) {
     hn::Vec<decltype(df)> r, g, b;
     hn::LoadInterleaved3(df, rgb + 3 * i, r, g, b);
     const auto a = alpha ? hn::LoadU(df, alpha + i) : hn::Set(df, alphaConstant);
-    hn::StoreInterleaved4(hn::BitCast(du, hn::DemoteTo(dh, r)), hn::BitCast(du, hn::DemoteTo(dh, g)),
-                          hn::BitCast(du, hn::DemoteTo(dh, b)), hn::BitCast(du, hn::DemoteTo(dh, a)), du,
+    hn::StoreInterleaved4(hn::BitCast(du, hn::DemoteTo(dh, clamp(r))), hn::BitCast(du, hn::DemoteTo(dh, clamp(g))),
+                          hn::BitCast(du, hn::DemoteTo(dh, clamp(b))), hn::BitCast(du, hn::DemoteTo(dh, clamp(a))), du,
                           out + 4 * i);
   }
 #endif
   for (; i < n; ++i) {
-    for (std::size_t c = 0; c < 3; ++c) out[4 * i + c] = floatToHalf(rgb[3 * i + c]);
-    out[4 * i + 3] = floatToHalf(alpha ? alpha[i] : alphaConstant);
+    for (std::size_t c = 0; c < 3; ++c) out[4 * i + c] = floatToHalf(clampToHalfRange(rgb[3 * i + c]));
+    out[4 * i + 3] = floatToHalf(clampToHalfRange(alpha ? alpha[i] : alphaConstant));
   }
 }
 

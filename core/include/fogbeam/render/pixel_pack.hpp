@@ -16,9 +16,19 @@ namespace fogbeam {
 /// The float value of a binary16.
 [[nodiscard]] float halfToFloat(std::uint16_t h) noexcept;
 
-/// out[4i..4i+3] = half(rgb[3i..3i+2]), half(alpha ? alpha[i] : alphaConstant), i < n.
-/// Composite linear: alpha null, alphaConstant 1. Overlay: rgb = overlay layer, alpha =
-/// transmittance.
+/// The largest finite binary16, 65504.
+inline constexpr float kHalfMax = 65504.0f;
+/// `v` clamped to [−kHalfMax, kHalfMax], NaN to 0: what packRgba16F packs, so that a frame never
+/// carries an infinity or a NaN (a lamp's image, or a traffic lamp at the eye, is brighter than
+/// 65504 cd/m²: it saturates there instead of becoming +inf in the host's compositing).
+[[nodiscard]] inline float clampToHalfRange(float v) noexcept {
+  if (!(v == v)) return 0.0f;
+  return v > kHalfMax ? kHalfMax : (v < -kHalfMax ? -kHalfMax : v);
+}
+
+/// out[4i..4i+3] = half(clampToHalfRange(rgb[3i..3i+2])), half(clampToHalfRange(alpha ? alpha[i] :
+/// alphaConstant)), i < n. Composite linear: alpha null, alphaConstant 1. Overlay: rgb = overlay
+/// layer, alpha = transmittance.
 void packRgba16F(const float* rgb, const float* alpha, float alphaConstant, std::size_t n, std::uint16_t* out);
 
 /// out[4i..4i+3] = the tone-mapped sRGB of rgb[3i..3i+2] (toneMapSrgb8's curve: x = L·2^EV,
