@@ -41,6 +41,20 @@ std::string endpoint(const sockaddr_in& a) {
   return std::string(host) + ":" + std::to_string(ntohs(a.sin_port));
 }
 
+// A count logged at most once per second: add() counts, and returns the count since the last line
+// when a line is due (0 when not), so that nothing the network does floods the log.
+struct LogLimit {
+  Clock::time_point last{};
+  std::uint64_t since = 0;
+  std::uint64_t add(std::uint64_t n = 1) {
+    since += n;
+    const auto now = Clock::now();
+    if (now - last < std::chrono::seconds(1)) return 0;
+    last = now;
+    return std::exchange(since, 0);
+  }
+};
+
 }  // namespace
 
 struct UdpReceiver::Impl {
@@ -64,19 +78,12 @@ struct UdpReceiver::Impl {
   std::map<std::uint64_t, Tracker> trackers;
   std::uint64_t useCounter = 0;
 
-  // Rate-limited log: per reason, the time of the last line and the drops since.
-  std::array<Clock::time_point, kDropReasonCount> lastLog{};
-  std::array<std::uint64_t, kDropReasonCount> sinceLog{};
-  // The same for failing system calls in the loop (receiveError()).
-  Clock::time_point lastErrorLog{};
-  std::uint64_t errorsSinceLog = 0;
-  // The same for traffic objects refused by a full store (refusedObjects()).
-  Clock::time_point lastRefusedLog{};
-  std::uint64_t refusedSinceLog = 0;
-  // The same for sender restarts (a sender whose sequence keeps jumping back by more than
-  // restart_window, e.g. random sequence numbers, restarts with every datagram).
-  Clock::time_point lastRestartLog{};
-  std::uint64_t restartsSinceLog = 0;
+  // Rate-limited logs: drops per reason; failing system calls in the loop (receiveError());
+  // traffic objects refused by a full store (refusedObjects()); sender restarts (a sender whose
+  // sequence keeps jumping back by more than restart_window, e.g. random sequence numbers,
+  // restarts again and again).
+  std::array<LogLimit, kDropReasonCount> dropLog{};
+  LogLimit errorLog, refusedLog, restartLog;
 
   void drop(DropReason r, std::string_view field, const sockaddr_in& from) {
     const auto i = static_cast<std::size_t>(r);
@@ -85,14 +92,9 @@ struct UdpReceiver::Impl {
       ++stats.datagrams;  // with its outcome, so every snapshot holds datagrams = applied + drops
       ++stats.dropped[i];
     }
-    ++sinceLog[i];
-    const auto now = Clock::now();
-    if (now - lastLog[i] >= std::chrono::seconds(1)) {
-      spdlog::warn("udp: dropped {} datagram(s) for {} (last from {}, field '{}')", sinceLog[i], toString(r),
-                   endpoint(from), field);
-      lastLog[i] = now;
-      sinceLog[i] = 0;
-    }
+    if (const std::uint64_t n = dropLog[i].add())
+      spdlog::warn("udp: dropped {} datagram(s) for {} (last from {}, field '{}')", n, toString(r), endpoint(from),
+                   field);
   }
 
   // A poll or recvfrom that failed for another reason than "nothing (more) to read" or a signal:
@@ -103,13 +105,8 @@ struct UdpReceiver::Impl {
       std::lock_guard<std::mutex> lock(statsMutex);
       ++stats.receive_errors;
     }
-    ++errorsSinceLog;
-    const auto now = Clock::now();
-    if (now - lastErrorLog >= std::chrono::seconds(1)) {
-      spdlog::warn("udp: {} failed {} time(s) on port {}: {}", call, errorsSinceLog, port, std::strerror(error));
-      lastErrorLog = now;
-      errorsSinceLog = 0;
-    }
+    if (const std::uint64_t n = errorLog.add())
+      spdlog::warn("udp: {} failed {} time(s) on port {}: {}", call, n, port, std::strerror(error));
   }
 
   // Classifies the sequence number; returns false (and counts) when the datagram is dropped.
@@ -143,14 +140,9 @@ struct UdpReceiver::Impl {
           ++stats.restarts;
         }
         // Counted each time, logged at most once per second with the count since the last line.
-        ++restartsSinceLog;
-        const auto now = Clock::now();
-        if (now - lastRestartLog >= std::chrono::seconds(1)) {
+        if (const std::uint64_t n = restartLog.add())
           spdlog::info("udp: sender {} restarted (sequence {} after {}; {} restart(s) since the last line)",
-                       endpoint(from), h.sequence, t.last[type], restartsSinceLog);
-          lastRestartLog = now;
-          restartsSinceLog = 0;
-        }
+                       endpoint(from), h.sequence, t.last[type], n);
       }
     }
     t.seen[type] = true;
@@ -200,14 +192,9 @@ struct UdpReceiver::Impl {
       std::lock_guard<std::mutex> lock(statsMutex);
       stats.traffic_refused += n;
     }
-    refusedSinceLog += n;
-    const auto now = Clock::now();
-    if (now - lastRefusedLog >= std::chrono::seconds(1)) {
-      spdlog::warn("udp: refused {} traffic object(s): the state holds its maximum of {} (last from {})",
-                   refusedSinceLog, store->options().max_traffic_objects, endpoint(from));
-      lastRefusedLog = now;
-      refusedSinceLog = 0;
-    }
+    if (const std::uint64_t count = refusedLog.add(n))
+      spdlog::warn("udp: refused {} traffic object(s): the state holds its maximum of {} (last from {})", count,
+                   store->options().max_traffic_objects, endpoint(from));
   }
 
   void run() {
