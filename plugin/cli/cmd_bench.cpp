@@ -12,8 +12,10 @@
 // llvmpipe runs it on the CPU where there is no GPU) against the CPU's accurate method on the
 // same frame, and near-field (aperture) lamps (--aperture-size).
 #include "cmd_bench.hpp"
+#include "road_model.hpp"
 
 #include <fogbeam/gl/surface_pass.hpp>
+#include <fogbeam/physics/photometry_io.hpp>
 
 #include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
@@ -34,6 +36,7 @@
 #include <cmath>
 #include <cstring>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <memory>
@@ -1079,7 +1082,7 @@ json nearFieldStage(const Scene& base, const BenchOptions& o, unsigned threads) 
 struct TrafficRun {
   StageStats airlight;
   double firstMs = 0.0;  // the untimed first frame: the ego lamps' view tables built
-  std::size_t evaluated = 0, mapNodes = 0, spokes = 0, movingEvaluated = 0;
+  std::size_t evaluated = 0, mapNodes = 0, spokes = 0, movingEvaluated = 0, culled = 0;
   double mapMs = 0.0;
   // Medians over the frames, ms: the spokes' stage, and the thread time per stage / threads.
   double spokeMs = 0.0, evalMs = 0.0, judgeMs = 0.0, fillMs = 0.0;
@@ -1088,16 +1091,19 @@ struct TrafficRun {
 };
 
 Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, const std::vector<std::size_t>& cars,
-                                 MovingLampPath path, unsigned threads, const BenchOptions& o) {
+                                 MovingLampPath path, unsigned threads, const BenchOptions& o,
+                                 double cutoff = FastPathOptions{}.moving_lamp_cutoff_cd_m2,
+                                 const SubsamplingOptions& sub = {}) {
   FastPathOptions fast;
   fast.view_table_step_deg = o.viewTableStepDeg;
   fast.moving_lamps = path;
+  fast.moving_lamp_cutoff_cd_m2 = cutoff;
   auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, fast);
   if (!ev) return ev.error();
   TrafficRun run;
   AirlightImage img;
   const auto tf = Clock::now();
-  ev->evaluate(scene, surface, SubsamplingOptions{}, img);  // view tables of the ego lamps
+  ev->evaluate(scene, surface, sub, img);  // view tables of the ego lamps
   run.firstMs = msSince(tf);
   constexpr double kStepM = 15.0 / 30.0;                     // 15 m/s at 30 Hz
   std::vector<double> mapMs, spokeMs, evalMs, judgeMs, fillMs;
@@ -1108,8 +1114,9 @@ Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, con
     }
     if (Status st = ev->setLampPoses(scene); !st) return st.error();
     const auto t0 = Clock::now();
-    ev->evaluate(scene, surface, SubsamplingOptions{}, run.last);
+    ev->evaluate(scene, surface, sub, run.last);
     run.airlight.ms.push_back(msSince(t0));
+    run.culled = run.last.moving_culled;
     run.evaluated = run.last.evaluated;
     run.mapNodes = run.last.map_nodes;
     run.spokes = run.last.spokes;
@@ -1304,6 +1311,9 @@ json changesStage(const Scene& still, const SurfaceBuffers& surface, unsigned th
   return out;
 }
 
+json denseTrafficStage(const Scene& scene, const std::vector<std::size_t>& cars0, const SurfaceBuffers& surface,
+                       unsigned threads, const BenchOptions& o);
+
 json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
   json out;
   int w = 0, h = 0;
@@ -1367,7 +1377,138 @@ json trafficStage(const BenchOptions& o, unsigned threads, GlSurfacePass* gl) {
     r["vs_per_ray"] = againstPerRay(*reference, moved, surface, run->last, pool, o, r["threshold_cd_m2"]);
     out[std::string(toString(path))] = r;
   }
+  out["dense"] = denseTrafficStage(scene, cars, surface, threads, o);
   return out;
+}
+
+// Issue 15, dense traffic: the traffic scene with a queue of oncoming cars (low beams) every
+// 20 m from station 80 m to 340 m and cars ahead in the ego lane (tail lamps, ECE R7 style) every
+// 30 m from 40 m to 340 m, on the default road (road_model.hpp): 26 cars, 54 moving lamps, all
+// driving on at 15 m/s. Timed with FastPathOptions::moving_lamp_cutoff_cd_m2 at its default and
+// at 0 (every lamp at every pixel), alternated; then both per pixel (--full) at a quarter of the
+// size, where the difference is the cutoff's alone (subsampling decides alike): its largest
+// value per channel against the cutoff, which bounds it.
+// The lamp files are the shipped ones, next to the traffic scene (config/lamps).
+Result<Scene> denseTraffic(const Scene& scene, const std::string& sceneFile, std::vector<std::size_t>& cars) {
+  Scene dense = scene;
+  const road::RoadParams rp;
+  const std::filesystem::path lamps = std::filesystem::path(sceneFile).parent_path() / ".." / "lamps";
+  auto low = loadProfileFile((lamps / "low_beam.ies").string());
+  if (!low) return low.error();
+  auto tail = loadProfileFile((lamps / "tail_lamp.ies").string());
+  if (!tail) return tail.error();
+  auto add = [&](double s, double d, double z, std::shared_ptr<const Profile> profile, const char* name, glm::dvec3 colour) {
+    SceneLamp l;
+    l.name = name;
+    l.lamp.position_m = road::roadPoint(rp, s, d) + Vec3(0.0, 0.0, z);
+    // Facing the ego car: against the road's heading (low beams of oncoming cars, tail lamps of
+    // cars ahead; the tail lamp's axis is mounted backwards, yaw 180° on its car).
+    l.lamp.worldFromLamp = worldFromYawPitchRoll(road::centreLine(rp, s).heading + kPi, 0.0, 0.0);
+    l.lamp.profile = std::move(profile);
+    l.lamp.color = colour;
+    cars.push_back(dense.lamps.size());
+    dense.lamps.push_back(std::move(l));
+  };
+  const double lane = 0.5 * rp.lane_width_m;
+  for (double s = 80.0; s <= 340.0; s += 20.0) {  // oncoming lane: d = +lane/2
+    add(s, lane - 0.7, 0.65, *low, "queued oncoming left low beam", glm::dvec3(1.0));
+    add(s, lane + 0.7, 0.65, *low, "queued oncoming right low beam", glm::dvec3(1.0));
+  }
+  for (double s = 40.0; s <= 340.0; s += 30.0) {  // ego lane: d = −lane/2; red tail lamps
+    add(s, -lane + 0.7, 0.8, *tail, "car ahead left tail", glm::dvec3(1.0, 0.05, 0.02));
+    add(s, -lane - 0.7, 0.8, *tail, "car ahead right tail", glm::dvec3(1.0, 0.05, 0.02));
+  }
+  return dense;
+}
+
+json denseTrafficStage(const Scene& scene, const std::vector<std::size_t>& cars0, const SurfaceBuffers& surface,
+                       unsigned threads, const BenchOptions& o) {
+  json out;
+  std::vector<std::size_t> cars = cars0;
+  auto made = denseTraffic(scene, o.trafficScene, cars);
+  if (!made) {
+    out["note"] = made.error().message;
+    return out;
+  }
+  const Scene& dense = *made;
+  out["moving_lamps"] = cars.size();
+  const double cutoff = FastPathOptions{}.moving_lamp_cutoff_cd_m2;
+  out["cutoff_cd_m2"] = cutoff;
+  // Alternated, each a drive of o.frames frames: the figures share the machine's state.
+  StageStats with, without;
+  std::size_t culled = 0, evalWith = 0, evalWithout = 0, spokesWith = 0, spokesWithout = 0;
+  for (int rep = 0; rep < 2; ++rep) {
+    for (double c : {cutoff, 0.0}) {
+      auto run = trafficFrames(dense, surface, cars, MovingLampPath::Pencil, threads, o, c);
+      if (!run) {
+        out["note"] = run.error().message;
+        return out;
+      }
+      StageStats& into = c > 0.0 ? with : without;
+      into.ms.insert(into.ms.end(), run->airlight.ms.begin(), run->airlight.ms.end());
+      (c > 0.0 ? evalWith : evalWithout) = run->movingEvaluated;
+      (c > 0.0 ? spokesWith : spokesWithout) = run->spokes;
+      if (c > 0.0) culled = run->culled;
+    }
+  }
+  out["with_cutoff"] = with.toJson();
+  out["with_cutoff"]["moving_evaluated"] = evalWith;
+  out["with_cutoff"]["spokes"] = spokesWith;
+  out["with_cutoff"]["culled"] = culled;
+  out["without"] = without.toJson();
+  out["without"]["moving_evaluated"] = evalWithout;
+  out["without"]["spokes"] = spokesWithout;
+  out["speedup"] = with.median() > 0.0 ? without.median() / with.median() : 0.0;
+  // Per pixel at a quarter of the size: the cutoff's own difference, one frame each.
+  Scene small = resized(dense, std::max(1, dense.camera.width / 4), std::max(1, dense.camera.height / 4));
+  SurfaceBuffers smallSurface;
+  renderSurfacesCpu(small, smallSurface);
+  BenchOptions one = o;
+  one.frames = 1;
+  SubsamplingOptions full;
+  full.full = true;
+  auto a = trafficFrames(small, smallSurface, cars, MovingLampPath::Pencil, threads, one, cutoff, full);
+  auto b = trafficFrames(small, smallSurface, cars, MovingLampPath::Pencil, threads, one, 0.0, full);
+  if (!a || !b) {
+    out["note"] = !a ? a.error().message : b.error().message;
+    return out;
+  }
+  double maxDiff = 0.0, maxValue = 0.0;
+  for (std::size_t k = 0; k < a->last.rgb.size(); ++k) {
+    maxDiff = std::max(maxDiff, static_cast<double>(std::abs(a->last.rgb[k] - b->last.rgb[k])));
+    maxValue = std::max(maxValue, static_cast<double>(b->last.rgb[k]));
+  }
+  out["full_check"] = {{"width", small.camera.width}, {"height", small.camera.height}, {"max_diff_cd_m2", maxDiff},
+                       {"max_value_cd_m2", maxValue}, {"ms_with", a->airlight.median()}, {"ms_without", b->airlight.median()}};
+  return out;
+}
+
+void printDenseTraffic(const json& d) {
+  if (d.is_null()) return;
+  if (d.contains("note")) {
+    std::printf("  dense traffic: %s\n", d["note"].get<std::string>().c_str());
+    return;
+  }
+  std::printf("dense traffic (the same drive with a queue of 14 oncoming cars every 20 m, 11 cars ahead showing tail "
+              "lamps every 30 m, up to 340 m: %zu moving lamps)\n",
+              d["moving_lamps"].get<std::size_t>());
+  char note[200];
+  std::snprintf(note, sizeof note, "  %zu lamps out of the frame, %zu (pixel, lamp) pairs, %zu spokes",
+                d["with_cutoff"]["culled"].get<std::size_t>(), d["with_cutoff"]["moving_evaluated"].get<std::size_t>(),
+                d["with_cutoff"]["spokes"].get<std::size_t>());
+  const std::string name = "cutoff " + std::to_string(d["cutoff_cd_m2"].get<double>()).substr(0, 6) + " cd/m2";
+  printStage(name.c_str(), d["with_cutoff"], note);
+  std::snprintf(note, sizeof note, "  %zu (pixel, lamp) pairs, %zu spokes; %.2f x the time with the cutoff",
+                d["without"]["moving_evaluated"].get<std::size_t>(), d["without"]["spokes"].get<std::size_t>(),
+                d["speedup"].get<double>());
+  printStage("no cutoff (every lamp, every pixel)", d["without"], note);
+  if (d.contains("full_check")) {
+    const json& f = d["full_check"];
+    std::printf("  %-30s %d x %d per pixel: largest difference %.2e cd/m2 (bound: the cutoff), largest value %.1f cd/m2; "
+                "%.0f vs %.0f ms\n",
+                "  cutoff vs none", f["width"].get<int>(), f["height"].get<int>(), f["max_diff_cd_m2"].get<double>(),
+                f["max_value_cd_m2"].get<double>(), f["ms_with"].get<double>(), f["ms_without"].get<double>());
+  }
 }
 
 void printTraffic(const json& t) {
@@ -1407,6 +1548,7 @@ void printTraffic(const json& t) {
                 r["eval_ms"].get<double>(), r["judge_ms"].get<double>(), r["fill_ms"].get<double>());
     printError(("  " + std::string(k) + " vs per ray").c_str(), r["vs_per_ray"]);
   }
+  if (t.contains("dense")) printDenseTraffic(t["dense"]);
   if (!t.contains("changes")) return;  // --only-pencil
   const json& c = t["changes"];
   if (c.contains("note")) {

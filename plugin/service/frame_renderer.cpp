@@ -418,6 +418,7 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->fast.table_cache_dir = tableCacheDirFor(config.table_cache);
   impl->cpuSurfaces.setTableCacheDir(impl->fast.table_cache_dir);  // the fog light's table and annulus maps
   impl->fast.moving_lamps = parseMovingLampPath(config.moving_lamps).value_or(MovingLampPath::Pencil);
+  impl->fast.moving_lamp_cutoff_cd_m2 = config.moving_lamp_cutoff_cd_m2;
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
   impl->vehicleCamera = channelCamera(config, impl->channel);

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <string>
 #include <tuple>
@@ -213,6 +214,67 @@ TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
               perRay.seconds / pencil.seconds);
   EXPECT_LE(pencilP95, 1e-3);
   EXPECT_LE(pencilMax, 0.02);
+}
+
+// FastPathOptions::moving_lamp_cutoff_cd_m2: moving lamps left out where AirlightBound bounds
+// their light below their share of the cutoff. nightRoad plus distant traffic (low beams facing
+// the eye at 150–400 m, tail lamps at 120 and 250 m, a car 300 m behind the eye): every pixel
+// within the cutoff of the image with every lamp everywhere (the bound is strict, so this holds
+// at any pixel), fewer (pixel, lamp) evaluations, the car behind left out of the frame, and
+// nothing left out at cutoff 0.
+TEST(AirlightImage, MovingLampsThatCannotMatterAreLeftOut) {
+  Scene scene = nightRoad(128, 72);
+  auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
+  auto tail = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/tail_lamp.ies");
+  ASSERT_TRUE(low.has_value() && tail.has_value());
+  auto add = [&](Vec3 pos, double yawDeg, std::shared_ptr<const Profile> profile, glm::dvec3 colour) {
+    Lamp l;
+    l.position_m = pos;
+    l.worldFromLamp = worldFromYawPitchRoll(radians(yawDeg), 0.0, 0.0);
+    l.profile = std::move(profile);
+    l.color = colour;
+    scene.lamps.push_back({"traffic", l});
+  };
+  for (double x : {150.0, 250.0, 400.0}) {
+    add({x, 4.2, 0.65}, 180.0, *low, glm::dvec3(1.0));
+    add({x, 2.8, 0.65}, 180.0, *low, glm::dvec3(1.0));
+  }
+  for (double x : {120.0, 250.0}) add({x, -0.7, 0.8}, 180.0, *tail, glm::dvec3(1.0, 0.05, 0.02));
+  add({-300.0, 0.7, 0.65}, 0.0, *low, glm::dvec3(1.0));  // behind the eye, lighting the road ahead
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  auto image = [&](double cutoff, AirlightImage& img) {
+    FastPathOptions f = scaledFastPath();
+    f.moving_lamp_cutoff_cd_m2 = cutoff;
+    auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, f);
+    ASSERT_TRUE(ev.has_value());
+    ev->evaluate(scene, surf, SubsamplingOptions{.full = true}, img);
+  };
+  const double cutoff = FastPathOptions{}.moving_lamp_cutoff_cd_m2;
+  AirlightImage with, without;
+  image(cutoff, with);
+  image(0.0, without);
+  double maxDiff = 0.0, maxValue = 0.0;
+  for (std::size_t k = 0; k < with.rgb.size(); ++k) {
+    maxDiff = std::max(maxDiff, static_cast<double>(std::abs(with.rgb[k] - without.rgb[k])));
+    maxValue = std::max(maxValue, static_cast<double>(without.rgb[k]));
+  }
+  std::printf("cutoff %.0e cd/m2: %zu lamps out of the frame, %zu (pixel, lamp) pairs against %zu; largest difference "
+              "%.2e cd/m2 (largest value %.1f)\n",
+              cutoff, with.moving_culled, with.moving_evaluated, without.moving_evaluated, maxDiff, maxValue);
+  EXPECT_LE(maxDiff, cutoff);
+  EXPECT_GT(maxDiff, 0.0);  // something was left out
+  EXPECT_GE(with.moving_culled, 1u);
+  EXPECT_LT(with.moving_evaluated, without.moving_evaluated * 9 / 10);
+  EXPECT_EQ(without.moving_culled, 0u);
+  // A cutoff that is not a luminance is refused.
+  for (double bad : {-1e-3, std::numeric_limits<double>::infinity(), std::nan("")}) {
+    FastPathOptions f;
+    f.moving_lamp_cutoff_cd_m2 = bad;
+    auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 1, f);
+    ASSERT_FALSE(ev.has_value()) << bad;
+    EXPECT_NE(ev.error().message.find("moving_lamp_cutoff_cd_m2"), std::string::npos) << ev.error().message;
+  }
 }
 
 // The adaptive spoke plan (PencilOptions::spoke_tolerance) against every spoke: fewer spokes,

@@ -141,6 +141,17 @@ struct AirlightImageEvaluator::State {
   };
   std::vector<PencilKey> pencilKeys;
   std::vector<float> pencilLum;  // per pencilLamps entry: r + g + b of its colour (block tests)
+  // Moving lamps that cannot matter (FastPathOptions::moving_lamp_cutoff_cd_m2): the phase
+  // function's bound, and per pencilLamps entry its peak intensity × largest colour weight
+  // (cd), then per frame the eye→lamp direction (world), the cosine of its cone (pixels whose
+  // ray has dot(ray, dir) ≤ cullCos skip the lamp; −2: none) and whether the whole lamp is out.
+  std::optional<AirlightBound> bound;
+  std::vector<double> pencilPeak;
+  std::vector<Vec3> cullDir;
+  std::vector<double> cullCos;
+  std::vector<char> culled;
+  std::vector<char> culledLamp;  // per scene lamp (lamps_), for the lamp-image guard
+  std::size_t culledCount = 0;
   // Stage "sample spokes": per frame, which spokes of each pencil its rays read, and the
   // (pencil, spoke) pairs handed to the threads (memory kept between frames).
   std::vector<int> gridSpokes;
@@ -289,12 +300,18 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
     else if (useFast && fast.moving_lamps != MovingLampPath::PerRay) {
       st.pencilLamps.push_back(i);
       st.pencilLum.push_back(static_cast<float>(sl.lamp.color[0] + sl.lamp.color[1] + sl.lamp.color[2]));
+      st.pencilPeak.push_back(sl.lamp.profile->peak().intensity_cd *
+                              std::max({sl.lamp.color[0], sl.lamp.color[1], sl.lamp.color[2], 0.0}));
     } else {
       st.rayLamps.push_back(i);
     }
   }
   if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
+  if (!(fast.moving_lamp_cutoff_cd_m2 >= 0.0 && std::isfinite(fast.moving_lamp_cutoff_cd_m2)))
+    return Error{"fast path: moving_lamp_cutoff_cd_m2 = " + std::to_string(fast.moving_lamp_cutoff_cd_m2) +
+                 " must be finite and >= 0"};
   if (!st.pencilLamps.empty()) {
+    st.bound.emplace(scene.fog.phase);
     // The pencil's options are checked here, once: an integrator built per frame must not fail.
     if (Status v = PencilAirlight::validate(fast.pencil_options); !v) return Error{"fast path: " + v.error().message};
     if (fast.moving_lamps == MovingLampPath::Map)
@@ -578,7 +595,9 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
         }
       }
       for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-        const bool on = st.enabled[st.pencilLamps[q]] && st.pencils[q];
+        const bool on = st.enabled[st.pencilLamps[q]] && st.pencils[q] && !st.culled[q];
+        const Vec3 cullDir = st.cullDir[q];
+        const double cullCos = st.cullCos[q];
         for (std::size_t k = k0; k < k1; ++k) {
           float* known = sc.mlActive ? sc.ml.data() + k * f.nq : nullptr;
           if (!on) {
@@ -589,6 +608,8 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
           double l = 0.0;
           if (known && !std::isnan(known[q])) {
             l = static_cast<double>(known[q]);  // interpolated in its block (subsampleTile)
+          } else if (!useMaps && glm::dot(dirs[k - k0], cullDir) <= cullCos) {
+            if (known) known[q] = 0.0f;  // outside its cone: below its share of the cutoff
           } else {
             l = useMaps ? st.maps[q].lookup(static_cast<int>(px.x[k]), static_cast<int>(px.y[k]))
                         : pa.evaluate(dirs[k - k0], static_cast<double>(px.d[k]));
@@ -1601,6 +1622,50 @@ double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const 
   return seconds;
 }
 
+// Stage "cull moving lamps" (FastPathOptions::moving_lamp_cutoff_cd_m2): per moving lamp that is
+// on, the cone about its image outside which AirlightBound bounds its light by its share of the
+// cutoff (the cutoff over the lamps on, per channel: together they lose at most the cutoff at any
+// pixel), and whether that cone misses the view (the largest angle between the view's centre
+// ray and a corner ray: a pinhole's rays all lie within it). Measured on a dense-traffic frame in
+// docs/airlight.md ("Moving lamps that cannot matter").
+void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, double kt, double albedo) {
+  const std::size_t nq = st.pencilLamps.size();
+  st.cullDir.assign(nq, Vec3(1, 0, 0));
+  st.cullCos.assign(nq, -2.0);
+  st.culled.assign(nq, 0);
+  st.culledLamp.assign(lamps.size(), 0);
+  st.culledCount = 0;
+  const double cutoff = st.fast.moving_lamp_cutoff_cd_m2;
+  if (nq == 0 || !(cutoff > 0.0) || !st.bound) return;
+  std::size_t on = 0;
+  for (std::size_t q = 0; q < nq; ++q) on += st.enabled[st.pencilLamps[q]] ? 1u : 0u;
+  if (on == 0) return;
+  const double share = cutoff / static_cast<double>(on);
+  const PixelRays rays(cf.cam);
+  const Vec3 centre = rays.direction(cf.principal.x, cf.principal.y);
+  const double w = cf.cam.width, h = cf.cam.height;
+  double half = 0.0;  // the view's half-angle about its centre ray (to the farthest corner)
+  for (const Vec2& c : {Vec2(0, 0), Vec2(w, 0), Vec2(0, h), Vec2(w, h)})
+    half = std::max(half, std::acos(std::clamp(glm::dot(centre, rays.direction(c.x, c.y)), -1.0, 1.0)));
+  for (std::size_t q = 0; q < nq; ++q) {
+    const std::size_t li = st.pencilLamps[q];
+    if (!st.enabled[li]) continue;
+    const Vec3 rel = lamps[li].lamp().position_m - cf.cam.position_m;
+    const double d = glm::length(rel);
+    if (!(d > 1e-6)) continue;  // the eye at the lamp: no bound
+    const double cone = st.bound->coneHalfAngle(AirlightBound::factor(st.pencilPeak[q], d, kt, albedo), share);
+    if (cone > kPi) continue;
+    st.cullDir[q] = rel / d;
+    st.cullCos[q] = std::cos(cone);
+    const double fromCentre = std::acos(std::clamp(glm::dot(centre, st.cullDir[q]), -1.0, 1.0));
+    if (fromCentre - cone > half) {
+      st.culled[q] = 1;
+      st.culledLamp[li] = 1;
+      ++st.culledCount;
+    }
+  }
+}
+
 // Stage "refresh pencils": moving lamps through the pencil get a new integrator state when the
 // eye or the lamp moved (spokes are then sampled again as pixels need them; their memory is
 // kept). An integrator that cannot be built leaves the lamp dark for the frame (its options
@@ -1609,6 +1674,7 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
   st.pencils.resize(st.pencilLamps.size());
   st.pencilKeys.resize(st.pencilLamps.size());
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
+    if (st.culled[q]) continue;  // out of this frame: refreshed when it is back
     const AirlightEvaluator& ev = lamps[st.pencilLamps[q]];
     const State::PencilKey key{&ev, cam.position_m, ev.lamp().position_m, ev.lamp().worldFromLamp,
                                ev.medium().extinction_per_m, ev.medium().albedo};
@@ -1640,18 +1706,24 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
 // beams read, 40 → ~17 ms a frame, the image's error against per ray unchanged). Returns the
 // spokes sampled this frame; `kept` counts those the plan read that an earlier frame sampled
 // (a pencil keeps them while the lamp's pose relative to the eye holds: PencilAirlight::reset).
-std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool, std::size_t& kept) {
+std::size_t sampleSpokes(State& st, const CameraFrame& cf, ThreadPool& pool, std::size_t& kept) {
   kept = 0;
   if (st.fast.moving_lamps != MovingLampPath::Pencil) return 0;
+  const Camera& cam = cf.cam;
   std::size_t sampled = 0;
   st.spokeJobs.clear();
   st.spokeIntervals.clear();
   constexpr int kStep = 8;
+  // A grid cell's diagonal as an angle, with room to spare (pixels subtend at most 1/focal).
+  const double margin = 2.0 * std::sqrt(2.0) * kStep / cf.focal;
   const int nx = (cam.width + kStep - 1) / kStep + 1, ny = (cam.height + kStep - 1) / kStep + 1;
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q]) continue;
+    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q] || st.culled[q]) continue;
     const PencilAirlight& pa = *st.pencils[q];
     const int n = pa.spokeCount();
+    // Grid rays outside the lamp's cone (cullMovingLamps), widened by a grid cell's diagonal,
+    // read no spoke: no pixel near them evaluates the lamp.
+    const double outside = st.cullCos[q] < -1.0 ? -2.0 : std::cos(std::min(kPi, std::acos(st.cullCos[q]) + margin));
     st.gridSpokes.resize(static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny));
     // One pointer to the pool (std::function keeps small captures without allocating).
     const struct {
@@ -1660,13 +1732,17 @@ std::size_t sampleSpokes(State& st, const Camera& cam, ThreadPool& pool, std::si
       PixelRays rays;
       int* out;
       int nx, step;
-    } grid{&pa, &cam, PixelRays(cam), st.gridSpokes.data(), nx, kStep};
+      Vec3 dir;
+      double outside;
+    } grid{&pa, &cam, PixelRays(cam), st.gridSpokes.data(), nx, kStep, st.cullDir[q], outside};
     const auto* gp = &grid;
     pool.parallelFor(static_cast<std::size_t>(ny), [gp](std::size_t row) {
       const int j = static_cast<int>(row);
       for (int i = 0; i < gp->nx; ++i) {
         const double x = std::min(i * gp->step, gp->cam->width - 1) + 0.5, y = std::min(j * gp->step, gp->cam->height - 1) + 0.5;
-        gp->out[row * static_cast<std::size_t>(gp->nx) + static_cast<std::size_t>(i)] = gp->pa->spokeOf(gp->rays.direction(x, y));
+        const Vec3 ray = gp->rays.direction(x, y);
+        gp->out[row * static_cast<std::size_t>(gp->nx) + static_cast<std::size_t>(i)] =
+            glm::dot(ray, gp->dir) <= gp->outside ? -1 : gp->pa->spokeOf(ray);
       }
     });
     // The azimuths read: per pair of neighbouring grid rays the spokes between theirs (the
@@ -1783,14 +1859,15 @@ void refreshLampMaps(State& st, const Camera& cam, const SurfaceBuffers& surface
   if (st.fast.moving_lamps != MovingLampPath::Map) return;
   st.maps.resize(st.pencilLamps.size());
   bool any = false;
-  for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) any = any || (st.enabled[st.pencilLamps[q]] && st.pencils[q]);
+  for (std::size_t q = 0; q < st.pencilLamps.size(); ++q)
+    any = any || (st.enabled[st.pencilLamps[q]] && st.pencils[q] && !st.culled[q]);
   if (!any) return;
   const auto t0 = std::chrono::steady_clock::now();
   const double far = opt.edge_transmittance > 0.0 && kt > 0.0 ? -std::log(opt.edge_transmittance) / kt : 0.0;
   st.depthEdges.build(surface.distance.data(), cam.width, cam.height, st.fast.lamp_map_options.coarse_px,
                       opt.depth_edge_rel, far, pool);
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q]) continue;
+    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q] || st.culled[q]) continue;
     LampMap& m = st.maps[q];
     m.build(*st.pencils[q], cam, st.depthEdges, st.fast.lamp_map_options, pool);
     st.mapNodes += m.stats().nodes;
@@ -1805,7 +1882,7 @@ void refreshLampMaps(State& st, const Camera& cam, const SurfaceBuffers& surface
 void locateLampImages(State& st, const Lamps& lamps, const CameraFrame& cf) {
   st.lampPixels.clear();
   for (std::size_t li = 0; li < lamps.size(); ++li) {
-    if (!st.enabled[li]) continue;
+    if (!st.enabled[li] || st.culledLamp[li]) continue;
     const Vec3 p = cf.toCamera(lamps[li].lamp().position_m);
     if (p.x <= 0.0) continue;
     st.lampPixels.emplace_back(cf.principal.x - cf.focal * p.y / p.x, cf.principal.y - cf.focal * p.z / p.x);
@@ -2277,9 +2354,11 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   out.view_tables_loaded = st.tablesLoaded;
   out.fog_rungs = st.fogRungs;
   if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
+  cullMovingLamps(st, lamps_, cf, scene.fog.extinction_per_m, scene.fog.albedo);
+  out.moving_culled = st.culledCount;
   refreshPencils(st, lamps_, cf.cam);
   const auto tSpokes = std::chrono::steady_clock::now();
-  out.spokes = sampleSpokes(st, cf.cam, *pool_, out.spokes_kept);
+  out.spokes = sampleSpokes(st, cf, *pool_, out.spokes_kept);
   out.spoke_seconds = since(tSpokes);
   refreshLampMaps(st, cf.cam, surface, opt, scene.fog.extinction_per_m, *pool_);
   out.map_seconds = st.mapSeconds;

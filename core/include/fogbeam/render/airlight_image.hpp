@@ -37,6 +37,7 @@
 #pragma once
 
 #include <fogbeam/physics/airlight.hpp>
+#include <fogbeam/physics/airlight_bound.hpp>
 #include <fogbeam/physics/airlight_pencil.hpp>
 #include <fogbeam/render/lamp_map.hpp>
 #include <fogbeam/render/airlight_kernels.hpp>
@@ -126,6 +127,14 @@ struct FastPathOptions {
   MovingLampPath moving_lamps = MovingLampPath::Pencil;
   PencilOptions pencil_options{};
   LampMapOptions lamp_map_options{};  ///< MovingLampPath::Map
+  /// Moving lamps (Pencil and Map) are left out where they cannot matter: the most, in cd/m² per
+  /// channel, that the lamps left out add to any pixel together. Each of the frame's N moving
+  /// lamps that is on gets cutoff / N; outside the cone about its image where AirlightBound's
+  /// bound (physics/airlight_bound.hpp) of its light falls below that share, its pixels skip it,
+  /// and a lamp whose cone misses the view is left out of the frame (no spokes, no pixels).
+  /// Distant traffic in dense fog costs nothing then (docs/airlight.md, "Moving lamps that
+  /// cannot matter"). 0: every moving lamp at every pixel.
+  double moving_lamp_cutoff_cd_m2 = 1e-3;
   /// Directory where vehicle lamps' view tables are kept between runs, keyed by everything they
   /// depend on (the profile's data, the lamp's pose in the camera frame, the frustum, the fog,
   /// these options and the code's version): a second start with the same rig, view and fog loads
@@ -154,6 +163,9 @@ struct AirlightImage {
   /// (pixel, moving lamp) pairs evaluated; the others of the evaluated pixels were interpolated
   /// lamp by lamp where that lamp's light is smooth (pencil path, subsampled)
   std::size_t moving_evaluated = 0;
+  /// Moving lamps on but left out of this frame: their light is below their share of
+  /// FastPathOptions::moving_lamp_cutoff_cd_m2 at every pixel of the view.
+  std::size_t moving_culled = 0;
   // The stages run interleaved on all threads: thread time per stage divided by the threads
   // (equal to wall time when the threads are kept busy).
   double eval_seconds = 0.0;     ///< evaluating pixels (kernels and per-ray lamps)

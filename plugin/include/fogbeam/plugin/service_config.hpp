@@ -12,6 +12,7 @@
 
 #include <fogbeam/ipc/can_config.hpp>
 #include <fogbeam/physics/medium.hpp>
+#include <fogbeam/render/airlight_image.hpp>
 #include <fogbeam/scene/effects.hpp>
 #include <fogbeam/scene/scene.hpp>
 #include <fogbeam/util/key_table.hpp>
@@ -87,6 +88,9 @@ struct ServiceConfig {
   bool subsampling = true;
   double view_table_step_deg = 0.5;
   std::string moving_lamps = "pencil";  ///< traffic and world lamps: "pencil" | "map" | "per-ray" (MovingLampPath)
+  /// cd/m² per channel: the most the moving lamps left out of a pixel add there together
+  /// (FastPathOptions::moving_lamp_cutoff_cd_m2); 0: none left out.
+  double moving_lamp_cutoff_cd_m2 = FastPathOptions{}.moving_lamp_cutoff_cd_m2;
   std::string surface = "auto";
   unsigned threads = 0;
   /// Where the ego lamps' view tables are kept between starts: "auto" ($XDG_CACHE_HOME/fogbeam
