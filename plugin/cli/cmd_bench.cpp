@@ -1437,6 +1437,7 @@ json denseTrafficStage(const Scene& scene, const std::vector<std::size_t>& cars0
   // Alternated, each a drive of o.frames frames: the figures share the machine's state.
   StageStats with, without;
   std::size_t culled = 0, evalWith = 0, evalWithout = 0, spokesWith = 0, spokesWithout = 0;
+  double spokeMsWith = 0.0, spokeMsWithout = 0.0;  // the last run's median spoke stage
   for (int rep = 0; rep < 2; ++rep) {
     for (double c : {cutoff, 0.0}) {
       auto run = trafficFrames(dense, surface, cars, MovingLampPath::Pencil, threads, o, c);
@@ -1448,6 +1449,7 @@ json denseTrafficStage(const Scene& scene, const std::vector<std::size_t>& cars0
       into.ms.insert(into.ms.end(), run->airlight.ms.begin(), run->airlight.ms.end());
       (c > 0.0 ? evalWith : evalWithout) = run->movingEvaluated;
       (c > 0.0 ? spokesWith : spokesWithout) = run->spokes;
+      (c > 0.0 ? spokeMsWith : spokeMsWithout) = run->spokeMs;
       if (c > 0.0) culled = run->culled;
     }
   }
@@ -1455,7 +1457,9 @@ json denseTrafficStage(const Scene& scene, const std::vector<std::size_t>& cars0
   out["with_cutoff"]["moving_evaluated"] = evalWith;
   out["with_cutoff"]["spokes"] = spokesWith;
   out["with_cutoff"]["culled"] = culled;
+  out["with_cutoff"]["spoke_ms"] = spokeMsWith;
   out["without"] = without.toJson();
+  out["without"]["spoke_ms"] = spokeMsWithout;
   out["without"]["moving_evaluated"] = evalWithout;
   out["without"]["spokes"] = spokesWithout;
   out["speedup"] = with.median() > 0.0 ? without.median() / with.median() : 0.0;
@@ -1493,14 +1497,14 @@ void printDenseTraffic(const json& d) {
               "lamps every 30 m, up to 340 m: %zu moving lamps)\n",
               d["moving_lamps"].get<std::size_t>());
   char note[200];
-  std::snprintf(note, sizeof note, "  %zu lamps out of the frame, %zu (pixel, lamp) pairs, %zu spokes",
+  std::snprintf(note, sizeof note, "  %zu lamps out of the frame, %zu (pixel, lamp) pairs, %zu spokes (%.1f ms)",
                 d["with_cutoff"]["culled"].get<std::size_t>(), d["with_cutoff"]["moving_evaluated"].get<std::size_t>(),
-                d["with_cutoff"]["spokes"].get<std::size_t>());
+                d["with_cutoff"]["spokes"].get<std::size_t>(), d["with_cutoff"]["spoke_ms"].get<double>());
   const std::string name = "cutoff " + std::to_string(d["cutoff_cd_m2"].get<double>()).substr(0, 6) + " cd/m2";
   printStage(name.c_str(), d["with_cutoff"], note);
-  std::snprintf(note, sizeof note, "  %zu (pixel, lamp) pairs, %zu spokes; %.2f x the time with the cutoff",
+  std::snprintf(note, sizeof note, "  %zu (pixel, lamp) pairs, %zu spokes (%.1f ms); %.2f x the time with the cutoff",
                 d["without"]["moving_evaluated"].get<std::size_t>(), d["without"]["spokes"].get<std::size_t>(),
-                d["speedup"].get<double>());
+                d["without"]["spoke_ms"].get<double>(), d["speedup"].get<double>());
   printStage("no cutoff (every lamp, every pixel)", d["without"], note);
   if (d.contains("full_check")) {
     const json& f = d["full_check"];

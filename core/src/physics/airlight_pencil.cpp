@@ -113,7 +113,7 @@ void PencilAirlight::reset(const Vec3& eye) {
 
 int PencilAirlight::coarseStep() const noexcept {
   if (!kernel_ || !(options_.spoke_tolerance > 0.0)) return 1;
-  int step = 16;
+  int step = 32;
   while (step > 1 && spokeCount_ % step != 0) step /= 2;
   return step;
 }

@@ -1700,7 +1700,7 @@ void refreshPencils(State& st, const Lamps& lamps, const Camera& cam) {
 // through the per-lamp maps, which sample one lamp per thread). The azimuths read are those
 // between the azimuths of neighbouring rays of an 8 px grid (the shorter way round), each
 // widened by one spoke. Over them the pencil's adaptive plan (PencilAirlight::coarseStep):
-// every 16th spoke, then the middles of the intervals whose middle rays would read the blend of
+// every 32nd spoke, then the middles of the intervals whose middle rays would read the blend of
 // its ends wrongly (PencilAirlight::middleDiffers), level by level down to single spokes
 // (measured on the traffic bench at 1280×720: 2 188 of the 5 760 spokes the four oncoming low
 // beams read, 40 → ~17 ms a frame, the image's error against per ray unchanged). Returns the

@@ -14,7 +14,7 @@
 // two spokes around its own azimuth linearly (the nearest alone moves its direction by up to
 // sin α · π / spokes, α the ray's angle from the lamp's direction, which at the sharp edges
 // of a low beam's pattern costs 1 % at the 95th percentile; the blend is second order). An
-// image evaluator samples fewer: a plan of every 16th spoke, halved where rays would read the
+// image evaluator samples fewer: a plan of every 32nd spoke, halved where rays would read the
 // blend of an interval's ends wrongly (coarseStep(), middleDiffers(), setLeaf()); its rays
 // then blend the two ends of their interval.
 // The per-spoke pieces follow the accurate method: breakpoints at the profile's feature kinks
@@ -96,7 +96,7 @@ class PencilAirlight {
   // the blend of its ends (middleDiffers), down to single spokes, and tells the pencil which
   // spokes a ray between them blends (setLeaf). Rays in azimuths without a leaf blend their
   // two neighbouring spokes as before. Where a low beam's cut-off runs along the spokes they
-  // stay 0.25° apart; across smooth light one in 16 or 8 is sampled.
+  // stay 0.25° apart; across smooth light one in 32 or 16 is sampled.
   /// The coarse spacing, in spokes (a power of two dividing spokeCount(); 1 = no planning).
   [[nodiscard]] int coarseStep() const noexcept;
   /// With spokes a, a + w/2 and a + w (mod spokeCount()) sampled: whether rays of the middle
