@@ -129,7 +129,8 @@ aperture_samples = 2
 )");
   auto a = loadServiceConfig(layer, {"timing.rate_hz=45", "render.subsampling=false", "glow.enabled=true",
                                      "glow.fade_in=3.5", "glare.age_years=67", "glare.pigmentation=0.25",
-                                     "render.airlight=\"gpu\"", "render.gpu_pieces=32"});
+                                     "render.airlight=\"gpu\"", "render.gpu_pieces=32",
+                                     "render.moving_lamp_cutoff_cd_m2=0.0002"});
   ASSERT_TRUE(a) << a.error().message;
   const std::string printed = toToml(*a);
   const std::string file = d.write("printed.toml", printed);
@@ -145,6 +146,7 @@ aperture_samples = 2
   EXPECT_DOUBLE_EQ(b->effects.glare.pigmentation, 0.25);
   EXPECT_EQ(b->effects.render.airlight, AirlightDevice::Gpu);
   EXPECT_EQ(b->effects.render.gpu_pieces, 32);
+  EXPECT_DOUBLE_EQ(b->moving_lamp_cutoff_cd_m2, 0.0002);
   const RigLamp& l = b->rigFor(0)->lamps.at(0);
   EXPECT_EQ(l.lamp.aperture.shape, ApertureShape::Rectangle);
   EXPECT_DOUBLE_EQ(l.lamp.aperture.width_m, 0.25);
@@ -301,6 +303,9 @@ TEST(ServiceConfig, ErrorsNameTheLayerLineAndKey) {
   EXPECT_NE(errorOf("[render]\nmoving_lamps = \"table\"\n").find("bad.toml:2: [render] moving_lamps: expected \"pencil\", \"map\" or \"per-ray\", found \"table\""),
             std::string::npos)
       << errorOf("[render]\nmoving_lamps = \"table\"\n");
+  EXPECT_NE(errorOf("[render]\nmoving_lamp_cutoff_cd_m2 = -0.001\n").find("bad.toml:2: [render] moving_lamp_cutoff_cd_m2: expected a number in [0, 1]"),
+            std::string::npos)
+      << errorOf("[render]\nmoving_lamp_cutoff_cd_m2 = -0.001\n");
   EXPECT_NE(errorOf("[render]\nthreds = 2\n").find("bad.toml:2: [render]: unknown key 'threds' (did you mean 'threads'?)"),
             std::string::npos)
       << errorOf("[render]\nthreds = 2\n");

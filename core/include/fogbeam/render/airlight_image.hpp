@@ -127,11 +127,12 @@ struct FastPathOptions {
   MovingLampPath moving_lamps = MovingLampPath::Pencil;
   PencilOptions pencil_options{};
   LampMapOptions lamp_map_options{};  ///< MovingLampPath::Map
-  /// Moving lamps (Pencil and Map) are left out where they cannot matter: the most, in cd/m² per
-  /// channel, that the lamps left out add to any pixel together. Each of the frame's N moving
-  /// lamps that is on gets cutoff / N; outside the cone about its image where AirlightBound's
-  /// bound (physics/airlight_bound.hpp) of its light falls below that share, its pixels skip it,
-  /// and a lamp whose cone misses the view is left out of the frame (no spokes, no pixels).
+  /// Moving lamps are left out where they cannot matter: the most, in cd/m² per channel, that the
+  /// lamps left out add to any pixel together. Each of the frame's N moving lamps that is on gets
+  /// cutoff / N; outside the cone about its image where AirlightBound's bound
+  /// (physics/airlight_bound.hpp) of its light falls below that share, its pixels skip it
+  /// (Pencil; Map reads its map there as elsewhere), and a lamp whose cone misses the view is
+  /// left out of the frame (Pencil and Map: no spokes or map, no pixels).
   /// Distant traffic in dense fog costs nothing then (docs/airlight.md, "Moving lamps that
   /// cannot matter"). 0: every moving lamp at every pixel.
   double moving_lamp_cutoff_cd_m2 = 1e-3;
