@@ -1082,7 +1082,7 @@ json nearFieldStage(const Scene& base, const BenchOptions& o, unsigned threads) 
 struct TrafficRun {
   StageStats airlight;
   double firstMs = 0.0;  // the untimed first frame: the ego lamps' view tables built
-  std::size_t evaluated = 0, mapNodes = 0, spokes = 0, movingEvaluated = 0, culled = 0;
+  std::size_t evaluated = 0, mapNodes = 0, spokes = 0, movingEvaluated = 0, culled = 0, dropped = 0;
   double mapMs = 0.0;
   // Medians over the frames, ms: the spokes' stage, and the thread time per stage / threads.
   double spokeMs = 0.0, evalMs = 0.0, judgeMs = 0.0, fillMs = 0.0;
@@ -1093,11 +1093,12 @@ struct TrafficRun {
 Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, const std::vector<std::size_t>& cars,
                                  MovingLampPath path, unsigned threads, const BenchOptions& o,
                                  double cutoff = FastPathOptions{}.moving_lamp_cutoff_cd_m2,
-                                 const SubsamplingOptions& sub = {}) {
+                                 const SubsamplingOptions& sub = {}, int budget = 0) {
   FastPathOptions fast;
   fast.view_table_step_deg = o.viewTableStepDeg;
   fast.moving_lamps = path;
   fast.moving_lamp_cutoff_cd_m2 = cutoff;
+  fast.max_moving_lamps = budget;
   auto ev = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, threads, fast);
   if (!ev) return ev.error();
   TrafficRun run;
@@ -1117,6 +1118,7 @@ Result<TrafficRun> trafficFrames(Scene scene, const SurfaceBuffers& surface, con
     ev->evaluate(scene, surface, sub, run.last);
     run.airlight.ms.push_back(msSince(t0));
     run.culled = run.last.moving_culled;
+    run.dropped = run.last.moving_dropped;
     run.evaluated = run.last.evaluated;
     run.mapNodes = run.last.map_nodes;
     run.spokes = run.last.spokes;
@@ -1484,6 +1486,35 @@ json denseTrafficStage(const Scene& scene, const std::vector<std::size_t>& cars0
   }
   out["full_check"] = {{"width", small.camera.width}, {"height", small.camera.height}, {"max_diff_cd_m2", maxDiff},
                        {"max_value_cd_m2", maxValue}, {"ms_with", a->airlight.median()}, {"ms_without", b->airlight.median()}};
+  // The budget (FastPathOptions::max_moving_lamps, the service's [render] max_moving_lamps): the
+  // dimmest lamps by their bound left out beyond kBudget, timed at full size; per pixel at the
+  // quarter size against no budget (same cutoff): what it loses, which nothing bounds.
+  constexpr int kBudget = 16;
+  auto budgeted = trafficFrames(dense, surface, cars, MovingLampPath::Pencil, threads, o, cutoff, {}, kBudget);
+  auto cSmall = trafficFrames(small, smallSurface, cars, MovingLampPath::Pencil, threads, one, cutoff, full, kBudget);
+  if (!budgeted || !cSmall) {
+    out["note"] = !budgeted ? budgeted.error().message : cSmall.error().message;
+    return out;
+  }
+  std::vector<double> lost;  // per pixel: luminance lost ÷ luminance with every lamp
+  double lostMax = 0.0;
+  for (std::size_t k = 0; k + 2 < a->last.rgb.size(); k += 3) {
+    double full3 = 0.0, budget3 = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      full3 += static_cast<double>(a->last.rgb[k + static_cast<std::size_t>(c)]);
+      budget3 += static_cast<double>(cSmall->last.rgb[k + static_cast<std::size_t>(c)]);
+    }
+    lostMax = std::max(lostMax, (full3 - budget3) / 3.0);
+    if (full3 > 0.0) lost.push_back((full3 - budget3) / full3);
+  }
+  out["budget"] = budgeted->airlight.toJson();
+  out["budget"]["max_moving_lamps"] = kBudget;
+  out["budget"]["dropped"] = budgeted->dropped;
+  out["budget"]["moving_evaluated"] = budgeted->movingEvaluated;
+  out["budget"]["spokes"] = budgeted->spokes;
+  out["budget"]["lost_p95"] = percentile(lost, 0.95);
+  out["budget"]["lost_max"] = lost.empty() ? 0.0 : *std::max_element(lost.begin(), lost.end());
+  out["budget"]["lost_max_cd_m2"] = lostMax;
   return out;
 }
 
@@ -1512,6 +1543,15 @@ void printDenseTraffic(const json& d) {
                 "%.0f vs %.0f ms\n",
                 "  cutoff vs none", f["width"].get<int>(), f["height"].get<int>(), f["max_diff_cd_m2"].get<double>(),
                 f["max_value_cd_m2"].get<double>(), f["ms_with"].get<double>(), f["ms_without"].get<double>());
+  }
+  if (d.contains("budget")) {
+    const json& b = d["budget"];
+    std::snprintf(note, sizeof note, "  %zu lamps left out, %zu (pixel, lamp) pairs, %zu spokes",
+                  b["dropped"].get<std::size_t>(), b["moving_evaluated"].get<std::size_t>(), b["spokes"].get<std::size_t>());
+    const std::string bname = "budget of " + std::to_string(b["max_moving_lamps"].get<int>()) + " lamps";
+    printStage(bname.c_str(), b, note);
+    std::printf("  %-30s per pixel (quarter size): light lost p95 %.2e, max %.2e of the pixel, largest %.2e cd/m2\n",
+                "  budget vs none", b["lost_p95"].get<double>(), b["lost_max"].get<double>(), b["lost_max_cd_m2"].get<double>());
   }
 }
 

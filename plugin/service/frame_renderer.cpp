@@ -280,6 +280,7 @@ struct ChannelRenderer::Impl {
   /// lamps they tabulate), and those of the rung being built.
   std::uint32_t egoLightBits = 0, rungLights = 0, rungBuildLights = 0;
   std::uint64_t ladderMisses = 0;  ///< ladder frames the evaluator could not serve (per pixel instead)
+  std::uint64_t droppedLamps = 0;  ///< traffic lamps left out by [render] max_moving_lamps, summed over frames
 
   AirlightImage air;
 
@@ -418,7 +419,10 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   impl->fast.table_cache_dir = tableCacheDirFor(config.table_cache);
   impl->cpuSurfaces.setTableCacheDir(impl->fast.table_cache_dir);  // the fog light's table and annulus maps
   impl->fast.moving_lamps = parseMovingLampPath(config.moving_lamps).value_or(MovingLampPath::Pencil);
-  impl->fast.moving_lamp_cutoff_cd_m2 = config.moving_lamp_cutoff_cd_m2;
+  // Halved: a frame's airlight comes from two evaluators (world and ego lamps, then traffic), each
+  // leaving out lamps worth up to its cutoff, and the key bounds what a pixel loses in all.
+  impl->fast.moving_lamp_cutoff_cd_m2 = 0.5 * config.moving_lamp_cutoff_cd_m2;
+  impl->fast.max_moving_lamps = config.max_moving_lamps;
   impl->subsampling.full = !config.subsampling;
   impl->format = formatCode(impl->channel.format);
   impl->vehicleCamera = channelCamera(config, impl->channel);
@@ -771,6 +775,7 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
   const Scene& traffic = b.traffic;
   const SurfaceBuffers* surf = b.surf;
   out.traffic_evaluated = 0;
+  out.traffic_lamps_dropped = 0;
   if (gpuAirlight) {
     air.width = surf->width;
     air.height = surf->height;
@@ -836,6 +841,17 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
     // no pass to sum two (2.8 M floats at 1280×720).
     trafficEval->evaluate(traffic, *surf, subsampling, air, AirlightImageEvaluator::Write::Add);
     out.traffic_evaluated = air.evaluated;
+    out.traffic_lamps_dropped = air.moving_dropped;
+    if (air.moving_dropped > 0) {
+      // Over the budget ([render] max_moving_lamps): the dimmest traffic lamps were left out of
+      // this frame. Counted; logged at most every 10 s.
+      droppedLamps += air.moving_dropped;
+      static std::atomic<std::int64_t> lastLog{0};
+      if (gateOpens(lastLog, 10))
+        spdlog::warn("render: more lit traffic lamps than [render] max_moving_lamps = {}: {} lamp-frame(s) so far left "
+                     "out, the dimmest each frame",
+                     config->max_moving_lamps, droppedLamps);
+    }
   }
   return Ok{};
 }

@@ -53,6 +53,7 @@ constexpr std::array kRenderKeys{
     KeySpec{"view_table_step_deg"},
     KeySpec{"moving_lamps"},
     KeySpec{"moving_lamp_cutoff_cd_m2"},
+    KeySpec{"max_moving_lamps"},
     KeySpec{"surface"},
     KeySpec{"threads"},
     KeySpec{"table_cache"},
@@ -249,6 +250,7 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     const std::array<std::string_view, 3> moving{"pencil", "map", "per-ray"};
     c.moving_lamps = s.choice("moving_lamps", moving, c.moving_lamps);
     c.moving_lamp_cutoff_cd_m2 = s.number("moving_lamp_cutoff_cd_m2", Range{0.0, 1.0}, c.moving_lamp_cutoff_cd_m2);
+    c.max_moving_lamps = static_cast<int>(s.integer("max_moving_lamps", 0, 100000, c.max_moving_lamps));
     const std::array<std::string_view, 3> surfaces{"auto", "gl", "cpu"};
     c.surface = s.choice("surface", surfaces, c.surface);
     c.threads = static_cast<unsigned>(s.integer("threads", 0, 256, c.threads));
@@ -565,7 +567,7 @@ std::string toToml(const ServiceConfig& c) {
   o << "\n[fog]\n" << c.fog_text << "\n";
   o << "\n[render]\nmethod = " << quoted(c.method) << "\nsubsampling = " << flag(c.subsampling)
     << "\nview_table_step_deg = " << num(c.view_table_step_deg) << "\nmoving_lamps = " << quoted(c.moving_lamps)
-    << "\nmoving_lamp_cutoff_cd_m2 = " << num(c.moving_lamp_cutoff_cd_m2)
+    << "\nmoving_lamp_cutoff_cd_m2 = " << num(c.moving_lamp_cutoff_cd_m2) << "\nmax_moving_lamps = " << c.max_moving_lamps
     << "\nsurface = " << quoted(c.surface)
     << "\nthreads = " << c.threads << "\ntable_cache = " << quoted(c.table_cache)
     << "\npending_tables = " << quoted(c.pending_tables) << "\ntable_adopt_frames = " << c.table_adopt_frames

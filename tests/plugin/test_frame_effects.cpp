@@ -118,6 +118,45 @@ const LampEffectsReport::Lamp* lampNamed(const LampEffectsReport& r, const std::
   return nullptr;
 }
 
+// [render] max_moving_lamps: with a budget of one lamp, of two oncoming cars (one low beam each)
+// the far one is left out of the frame and counted; the frame is the one with the near car alone
+// (within the cutoff: the lamps' shares of it differ), and without the budget both are there.
+TEST(ChannelRendererEffects, TrafficBeyondTheLampBudgetIsLeftOutDimmestFirst) {
+  auto frameWith = [](const std::vector<std::string>& set, const std::vector<double>& cars, RenderedFrame& f) {
+    const ServiceConfig cfg = configWith(set, rigLayer("", false));
+    auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+    ASSERT_TRUE(r) << r.error().message;
+    ipc::SimSnapshot s = stateAt(0.0, 0);
+    for (std::size_t k = 0; k < cars.size(); ++k) {
+      ipc::TrafficEntry e;
+      e.object.id = static_cast<std::uint32_t>(k + 1);
+      e.object.pose.position_m = {cars[k], 3.5, 0.0};
+      e.object.pose.yaw_deg = 180.0f;
+      e.object.lights = ipc::light::kLowBeam;
+      e.stamp.valid = true;
+      e.stamp.received = ipc::Clock::now();
+      s.traffic.push_back(e);
+    }
+    ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, f));
+  };
+  RenderedFrame budget, nearOnly, both;
+  frameWith({"render.max_moving_lamps=1", "render.subsampling=false"}, {30.0, 90.0}, budget);
+  frameWith({"render.max_moving_lamps=1", "render.subsampling=false"}, {30.0}, nearOnly);
+  frameWith({"render.max_moving_lamps=0", "render.subsampling=false"}, {30.0, 90.0}, both);
+  EXPECT_EQ(budget.traffic_lamps_dropped, 1u);
+  EXPECT_EQ(nearOnly.traffic_lamps_dropped, 0u);
+  EXPECT_EQ(both.traffic_lamps_dropped, 0u);
+  const std::vector<float>& a = budget.layers.airlight;
+  ASSERT_EQ(a.size(), nearOnly.layers.airlight.size());
+  double diff = 0.0, farLight = 0.0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    diff = std::max(diff, static_cast<double>(std::abs(a[k] - nearOnly.layers.airlight[k])));
+    farLight = std::max(farLight, static_cast<double>(both.layers.airlight[k] - a[k]));
+  }
+  EXPECT_LE(diff, 1e-3);      // [render] moving_lamp_cutoff_cd_m2, the default
+  EXPECT_GT(farLight, 1e-2);  // the far car's light, which the budget left out
+}
+
 TEST(ChannelRendererEffects, GlareOfAnOncomingCarRisesAsItApproaches) {
   const ServiceConfig cfg = configWith({"glare.enabled=true"});
   const Scene world = worldOf(cfg);

@@ -222,11 +222,11 @@ TEST(AirlightImage, MovingLampPathsAgainstPerRay) {
 // within the cutoff of the image with every lamp everywhere (the bound is strict, so this holds
 // at any pixel), fewer (pixel, lamp) evaluations, the car behind left out of the frame, and
 // nothing left out at cutoff 0.
-TEST(AirlightImage, MovingLampsThatCannotMatterAreLeftOut) {
+Scene withDistantTraffic() {
   Scene scene = nightRoad(128, 72);
   auto low = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/low_beam.ies");
   auto tail = loadProfileFile(std::string(FOGBEAM_CONFIG_DIR) + "/lamps/tail_lamp.ies");
-  ASSERT_TRUE(low.has_value() && tail.has_value());
+  EXPECT_TRUE(low.has_value() && tail.has_value());
   auto add = [&](Vec3 pos, double yawDeg, std::shared_ptr<const Profile> profile, glm::dvec3 colour) {
     Lamp l;
     l.position_m = pos;
@@ -241,6 +241,11 @@ TEST(AirlightImage, MovingLampsThatCannotMatterAreLeftOut) {
   }
   for (double x : {120.0, 250.0}) add({x, -0.7, 0.8}, 180.0, *tail, glm::dvec3(1.0, 0.05, 0.02));
   add({-300.0, 0.7, 0.65}, 0.0, *low, glm::dvec3(1.0));  // behind the eye, lighting the road ahead
+  return scene;
+}
+
+TEST(AirlightImage, MovingLampsThatCannotMatterAreLeftOut) {
+  const Scene scene = withDistantTraffic();
   SurfaceBuffers surf;
   renderSurfacesCpu(scene, surf);
   auto image = [&](double cutoff, AirlightImage& img) {
@@ -275,6 +280,54 @@ TEST(AirlightImage, MovingLampsThatCannotMatterAreLeftOut) {
     ASSERT_FALSE(ev.has_value()) << bad;
     EXPECT_NE(ev.error().message.find("moving_lamp_cutoff_cd_m2"), std::string::npos) << ev.error().message;
   }
+}
+
+// FastPathOptions::max_moving_lamps: beyond the budget the lamps whose bound's factor
+// (K_s I_max e^{−K_t D}/D × largest colour weight) is smallest are left out of the frame: the
+// image is the one with exactly those lamps switched off, bit for bit (cutoff 0 in both, so that
+// nothing else depends on how many lamps are on).
+TEST(AirlightImage, MovingLampBudgetLeavesOutTheDimmest) {
+  const Scene scene = withDistantTraffic();
+  SurfaceBuffers surf;
+  renderSurfacesCpu(scene, surf);
+  FastPathOptions f = scaledFastPath();
+  f.moving_lamp_cutoff_cd_m2 = 0.0;
+  f.max_moving_lamps = 4;
+  auto budgeted = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, f);
+  ASSERT_TRUE(budgeted.has_value());
+  AirlightImage a;
+  budgeted->evaluate(scene, surf, SubsamplingOptions{}, a);
+  // The expected ranking, from the bound's factor of every measured lamp not fixed to the eye.
+  std::vector<std::pair<double, std::size_t>> rank;
+  for (std::size_t i = 0; i < scene.lamps.size(); ++i) {
+    const SceneLamp& l = scene.lamps[i];
+    if (l.mount == LampMount::Vehicle || std::holds_alternative<IsotropicProfile>(l.lamp.profile->model())) continue;
+    const double d = glm::length(l.lamp.position_m - scene.camera.position_m);
+    const double c = std::max({l.lamp.color[0], l.lamp.color[1], l.lamp.color[2]});
+    rank.emplace_back(AirlightBound::factor(l.lamp.profile->peak().intensity_cd * c, d, scene.fog.extinction_per_m,
+                                            scene.fog.albedo),
+                      i);
+  }
+  ASSERT_EQ(rank.size(), 11u);
+  std::stable_sort(rank.begin(), rank.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+  EXPECT_EQ(a.moving_dropped, rank.size() - 4);
+  f.max_moving_lamps = 0;
+  auto switched = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, f);
+  ASSERT_TRUE(switched.has_value());
+  for (std::size_t k = 4; k < rank.size(); ++k) switched->setLampEnabled(rank[k].second, false);
+  AirlightImage b;
+  switched->evaluate(scene, surf, SubsamplingOptions{}, b);
+  EXPECT_EQ(b.moving_dropped, 0u);
+  ASSERT_EQ(a.rgb.size(), b.rgb.size());
+  EXPECT_TRUE(a.rgb == b.rgb) << "the budget's image is not the image with the dimmest lamps off";
+  // And they were not negligible: the full image differs.
+  AirlightImage all;
+  auto every = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, f);
+  ASSERT_TRUE(every.has_value());
+  every->evaluate(scene, surf, SubsamplingOptions{}, all);
+  EXPECT_FALSE(all.rgb == a.rgb);
+  f.max_moving_lamps = -1;
+  EXPECT_FALSE(AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 1, f).has_value());
 }
 
 // The adaptive spoke plan (PencilOptions::spoke_tolerance) against every spoke: fewer spokes,

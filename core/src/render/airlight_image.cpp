@@ -151,7 +151,8 @@ struct AirlightImageEvaluator::State {
   std::vector<double> cullCos;
   std::vector<char> culled;
   std::vector<char> culledLamp;  // per scene lamp (lamps_), for the lamp-image guard
-  std::size_t culledCount = 0;
+  std::size_t culledCount = 0, droppedCount = 0;
+  std::vector<std::pair<double, std::size_t>> ranked;  // the budget's ranking (per frame, kept)
   // Stage "sample spokes": per frame, which spokes of each pencil its rays read, and the
   // (pencil, spoke) pairs handed to the threads (memory kept between frames).
   std::vector<int> gridSpokes;
@@ -307,6 +308,8 @@ Result<AirlightImageEvaluator> AirlightImageEvaluator::build(const Scene& scene,
     }
   }
   if (!st.isoLamps.empty()) st.isoTable = kernels::IsoTable::get(scene.fog.phase);
+  if (fast.max_moving_lamps < 0)
+    return Error{"fast path: max_moving_lamps = " + std::to_string(fast.max_moving_lamps) + " must be >= 0 (0: no budget)"};
   if (!(fast.moving_lamp_cutoff_cd_m2 >= 0.0 && std::isfinite(fast.moving_lamp_cutoff_cd_m2)))
     return Error{"fast path: moving_lamp_cutoff_cd_m2 = " + std::to_string(fast.moving_lamp_cutoff_cd_m2) +
                  " must be finite and >= 0"};
@@ -1635,25 +1638,32 @@ void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, doubl
   st.culled.assign(nq, 0);
   st.culledLamp.assign(lamps.size(), 0);
   st.culledCount = 0;
+  st.droppedCount = 0;
   const double cutoff = st.fast.moving_lamp_cutoff_cd_m2;
-  if (nq == 0 || !(cutoff > 0.0) || !st.bound) return;
+  if (nq == 0 || !st.bound) return;
   std::size_t on = 0;
   for (std::size_t q = 0; q < nq; ++q) on += st.enabled[st.pencilLamps[q]] ? 1u : 0u;
   if (on == 0) return;
-  const double share = cutoff / static_cast<double>(on);
+  const double share = cutoff > 0.0 ? cutoff / static_cast<double>(on) : 0.0;
   const PixelRays rays(cf.cam);
   const Vec3 centre = rays.direction(cf.principal.x, cf.principal.y);
   const double w = cf.cam.width, h = cf.cam.height;
   double half = 0.0;  // the view's half-angle about its centre ray (to the farthest corner)
   for (const Vec2& c : {Vec2(0, 0), Vec2(w, 0), Vec2(0, h), Vec2(w, h)})
     half = std::max(half, std::acos(std::clamp(glm::dot(centre, rays.direction(c.x, c.y)), -1.0, 1.0)));
+  st.ranked.clear();
   for (std::size_t q = 0; q < nq; ++q) {
     const std::size_t li = st.pencilLamps[q];
     if (!st.enabled[li]) continue;
     const Vec3 rel = lamps[li].lamp().position_m - cf.cam.position_m;
     const double d = glm::length(rel);
-    if (!(d > 1e-6)) continue;  // the eye at the lamp: no bound
-    const double cone = st.bound->coneHalfAngle(AirlightBound::factor(st.pencilPeak[q], d, kt, albedo), share);
+    if (!(d > 1e-6)) {  // the eye at the lamp: no bound, first for the budget
+      st.ranked.emplace_back(std::numeric_limits<double>::infinity(), q);
+      continue;
+    }
+    const double factor = AirlightBound::factor(st.pencilPeak[q], d, kt, albedo);
+    st.ranked.emplace_back(factor, q);
+    const double cone = st.bound->coneHalfAngle(factor, share);  // share 0: never
     if (cone > kPi) continue;
     st.cullDir[q] = rel / d;
     st.cullCos[q] = std::cos(cone);
@@ -1662,6 +1672,19 @@ void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, doubl
       st.culled[q] = 1;
       st.culledLamp[li] = 1;
       ++st.culledCount;
+    }
+  }
+  // The budget: of the lamps left, the brightest by their bound's factor (the eye at a lamp:
+  // +inf, kept first); ties in scene order, so that equal frames drop the same lamps.
+  const int budget = st.fast.max_moving_lamps;
+  std::erase_if(st.ranked, [&](const auto& r) { return st.culled[r.second] != 0; });
+  if (budget > 0 && st.ranked.size() > static_cast<std::size_t>(budget)) {
+    std::stable_sort(st.ranked.begin(), st.ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (std::size_t k = static_cast<std::size_t>(budget); k < st.ranked.size(); ++k) {
+      const std::size_t q = st.ranked[k].second;
+      st.culled[q] = 1;
+      st.culledLamp[st.pencilLamps[q]] = 1;
+      ++st.droppedCount;
     }
   }
 }
@@ -2356,6 +2379,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
   cullMovingLamps(st, lamps_, cf, scene.fog.extinction_per_m, scene.fog.albedo);
   out.moving_culled = st.culledCount;
+  out.moving_dropped = st.droppedCount;
   refreshPencils(st, lamps_, cf.cam);
   const auto tSpokes = std::chrono::steady_clock::now();
   out.spokes = sampleSpokes(st, cf, *pool_, out.spokes_kept);

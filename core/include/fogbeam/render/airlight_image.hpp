@@ -136,6 +136,12 @@ struct FastPathOptions {
   /// Distant traffic in dense fog costs nothing then (docs/airlight.md, "Moving lamps that
   /// cannot matter"). 0: every moving lamp at every pixel.
   double moving_lamp_cutoff_cd_m2 = 1e-3;
+  /// A budget for frames with much traffic: at most this many moving lamps (after the cutoff
+  /// above) are evaluated in a frame; the rest, those whose bound K_s I_max e^{−K_t D}/D
+  /// (AirlightBound::factor × their largest colour weight) is smallest, are left out of it and
+  /// counted (AirlightImage::moving_dropped). Unlike the cutoff this loses light without a bound:
+  /// it trades accuracy for a frame time that does not grow without limit. 0: no budget.
+  int max_moving_lamps = 0;
   /// Directory where vehicle lamps' view tables are kept between runs, keyed by everything they
   /// depend on (the profile's data, the lamp's pose in the camera frame, the frustum, the fog,
   /// these options and the code's version): a second start with the same rig, view and fog loads
@@ -167,6 +173,9 @@ struct AirlightImage {
   /// Moving lamps on but left out of this frame: their light is below their share of
   /// FastPathOptions::moving_lamp_cutoff_cd_m2 at every pixel of the view.
   std::size_t moving_culled = 0;
+  /// Moving lamps on, within the cutoff's reach, but left out of this frame by the budget
+  /// FastPathOptions::max_moving_lamps (the least bright by their bound).
+  std::size_t moving_dropped = 0;
   // The stages run interleaved on all threads: thread time per stage divided by the threads
   // (equal to wall time when the threads are kept busy).
   double eval_seconds = 0.0;     ///< evaluating pixels (kernels and per-ray lamps)

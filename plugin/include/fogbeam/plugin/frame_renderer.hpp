@@ -114,6 +114,8 @@ struct RenderedFrame {
   FrameTimings timings;
   std::size_t airlight_evaluated = 0;  ///< pixels evaluated (the rest interpolated)
   std::size_t traffic_evaluated = 0;   ///< pixels of the traffic layer evaluated (0: no traffic lamps)
+  /// Lit traffic lamps left out of this frame by [render] max_moving_lamps (the dimmest by their bound).
+  std::size_t traffic_lamps_dropped = 0;
   bool pending = false;            ///< a fog or bending change is still being tabulated
   /// Rungs of the fog ladder the ego lamps' tables were read from ([render] fog_ladder_ratio):
   /// 0 = the tables built for the frame's fog (or none: pending, GPU airlight), 1 = a rung at its

@@ -91,6 +91,9 @@ struct ServiceConfig {
   /// cd/m² per channel: the most the moving lamps left out of a pixel add there together
   /// (FastPathOptions::moving_lamp_cutoff_cd_m2); 0: none left out.
   double moving_lamp_cutoff_cd_m2 = FastPathOptions{}.moving_lamp_cutoff_cd_m2;
+  /// At most this many lit traffic lamps (and as many of the world's moving lamps) evaluated per
+  /// frame, the dimmest by their bound left out (FastPathOptions::max_moving_lamps); 0: no budget.
+  int max_moving_lamps = 64;
   std::string surface = "auto";
   unsigned threads = 0;
   /// Where the ego lamps' view tables are kept between starts: "auto" ($XDG_CACHE_HOME/fogbeam
