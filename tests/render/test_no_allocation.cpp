@@ -38,7 +38,9 @@ namespace {
 
 // Every path of the image evaluator: view table, F table, moving tabulated and spot lamps
 // (through `moving`: the pencil per pixel, or each lamp's map of the frame).
-void expectSteadyFramesDoNotAllocate(MovingLampPath moving) {
+// `budget`: FastPathOptions::max_moving_lamps (0: none); with one, the lamps beyond it are
+// ranked and left out every frame.
+void expectSteadyFramesDoNotAllocate(MovingLampPath moving, int budget = 0) {
   Scene s;
   s.fog.extinction_per_m = extinctionFromVisibility(100.0);
   s.fog.albedo = 0.95;
@@ -62,12 +64,14 @@ void expectSteadyFramesDoNotAllocate(MovingLampPath moving) {
   lamp({45.0, 3.5, 0.65}, 180.0, *low, LampMount::World);
   lamp({30.0, 3.5, 0.65}, 180.0, makeProfile(SpotProfile{20000.0, radians(4.0), radians(14.0)}).value(),
        LampMount::World);
+  lamp({-300.0, 0.0, 0.65}, 0.0, *low, LampMount::World);  // behind, far: out of the frame (the cutoff)
   s.planes.push_back(Plane{{0, 0, 0}, {0, 0, 1}, 0.15});
   SurfaceBuffers surf;
   renderSurfacesCpu(s, surf);
   FastPathOptions fast;
   fast.view_table_step_deg = 1.0;
   fast.moving_lamps = moving;
+  fast.max_moving_lamps = budget;
   auto ev = AirlightImageEvaluator::build(s, AirlightMethod::Accurate, {}, 2, fast);
   ASSERT_TRUE(ev);
   AirlightImage img;
@@ -85,6 +89,8 @@ void expectSteadyFramesDoNotAllocate(MovingLampPath moving) {
   counting = false;
   EXPECT_EQ(allocations.load(), 0) << "heap allocations during two steady frames and a composite";
   EXPECT_GT(img.evaluated, 0u);
+  EXPECT_EQ(img.moving_culled, 1u);
+  EXPECT_EQ(img.moving_dropped, budget > 0 ? 2u - static_cast<std::size_t>(budget) : 0u);
 }
 
 TEST(NoAllocation, SteadyFramesDoNotAllocate) { expectSteadyFramesDoNotAllocate(MovingLampPath::Pencil); }
@@ -92,6 +98,11 @@ TEST(NoAllocation, SteadyFramesDoNotAllocate) { expectSteadyFramesDoNotAllocate(
 // The maps are rebuilt every frame (the frame's distances may change with nothing else moving):
 // into the buffers of the frames before.
 TEST(NoAllocation, SteadyFramesWithLampMapsDoNotAllocate) { expectSteadyFramesDoNotAllocate(MovingLampPath::Map); }
+
+// A lamp budget (FastPathOptions::max_moving_lamps) ranks the lamps every frame, in place.
+TEST(NoAllocation, SteadyFramesOverALampBudgetDoNotAllocate) {
+  expectSteadyFramesDoNotAllocate(MovingLampPath::Pencil, 1);
+}
 
 // The glow and glare layers (lamp_effects.hpp, fast path): a steady scene reuses its glow curves,
 // grids, flags and layers.

@@ -1679,7 +1679,10 @@ void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, doubl
   const int budget = st.fast.max_moving_lamps;
   std::erase_if(st.ranked, [&](const auto& r) { return st.culled[r.second] != 0; });
   if (budget > 0 && st.ranked.size() > static_cast<std::size_t>(budget)) {
-    std::stable_sort(st.ranked.begin(), st.ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    // std::sort with the scene order as tie-break: the same order as a stable sort, without the
+    // buffer std::stable_sort allocates (steady frames allocate nothing).
+    std::sort(st.ranked.begin(), st.ranked.end(),
+              [](const auto& a, const auto& b) { return a.first > b.first || (a.first == b.first && a.second < b.second); });
     for (std::size_t k = static_cast<std::size_t>(budget); k < st.ranked.size(); ++k) {
       const std::size_t q = st.ranked[k].second;
       st.culled[q] = 1;
