@@ -309,7 +309,8 @@ TEST(AirlightImage, MovingLampBudgetLeavesOutTheDimmest) {
                       i);
   }
   ASSERT_EQ(rank.size(), 11u);
-  std::stable_sort(rank.begin(), rank.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+  std::sort(rank.begin(), rank.end(),
+            [](const auto& x, const auto& y) { return x.first > y.first || (x.first == y.first && x.second < y.second); });
   EXPECT_EQ(a.moving_dropped, rank.size() - 4);
   f.max_moving_lamps = 0;
   auto switched = AirlightImageEvaluator::build(scene, AirlightMethod::Accurate, {}, 0, f);
