@@ -150,7 +150,6 @@ struct AirlightImageEvaluator::State {
   std::vector<Vec3> cullDir;
   std::vector<double> cullCos;
   std::vector<char> culled;
-  std::vector<char> culledLamp;  // per scene lamp (lamps_), for the lamp-image guard
   std::size_t culledCount = 0, droppedCount = 0;
   std::vector<std::pair<double, std::size_t>> ranked;  // the budget's ranking (per frame, kept)
   // Stage "sample spokes": per frame, which spokes of each pencil its rays read, and the
@@ -396,6 +395,12 @@ std::size_t AirlightImageEvaluator::fastTableBytes() const noexcept {
 
 namespace {
 
+// Whether pencil lamp q (an index into pencilLamps) is evaluated this frame: switched on, its
+// integrator built, and not left out by the cutoff or the lamp budget (cullMovingLamps).
+bool pencilOn(const AirlightImageEvaluator::State& st, std::size_t q) {
+  return st.enabled[st.pencilLamps[q]] && st.pencils[q] && !st.culled[q];
+}
+
 double since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -598,7 +603,7 @@ void evaluateBatch(const FrameCtx& f, Scratch& sc) {
         }
       }
       for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-        const bool on = st.enabled[st.pencilLamps[q]] && st.pencils[q] && !st.culled[q];
+        const bool on = pencilOn(st, q);
         const Vec3 cullDir = st.cullDir[q];
         const double cullCos = st.cullCos[q];
         for (std::size_t k = k0; k < k1; ++k) {
@@ -1636,7 +1641,6 @@ void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, doubl
   st.cullDir.assign(nq, Vec3(1, 0, 0));
   st.cullCos.assign(nq, -2.0);
   st.culled.assign(nq, 0);
-  st.culledLamp.assign(lamps.size(), 0);
   st.culledCount = 0;
   st.droppedCount = 0;
   const double cutoff = st.fast.moving_lamp_cutoff_cd_m2;
@@ -1670,7 +1674,6 @@ void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, doubl
     const double fromCentre = std::acos(std::clamp(glm::dot(centre, st.cullDir[q]), -1.0, 1.0));
     if (fromCentre - cone > half) {
       st.culled[q] = 1;
-      st.culledLamp[li] = 1;
       ++st.culledCount;
     }
   }
@@ -1686,7 +1689,6 @@ void cullMovingLamps(State& st, const Lamps& lamps, const CameraFrame& cf, doubl
     for (std::size_t k = static_cast<std::size_t>(budget); k < st.ranked.size(); ++k) {
       const std::size_t q = st.ranked[k].second;
       st.culled[q] = 1;
-      st.culledLamp[st.pencilLamps[q]] = 1;
       ++st.droppedCount;
     }
   }
@@ -1744,7 +1746,7 @@ std::size_t sampleSpokes(State& st, const CameraFrame& cf, ThreadPool& pool, std
   const double margin = 2.0 * std::sqrt(2.0) * kStep / cf.focal;
   const int nx = (cam.width + kStep - 1) / kStep + 1, ny = (cam.height + kStep - 1) / kStep + 1;
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q] || st.culled[q]) continue;
+    if (!pencilOn(st, q)) continue;
     const PencilAirlight& pa = *st.pencils[q];
     const int n = pa.spokeCount();
     // Grid rays outside the lamp's cone (cullMovingLamps), widened by a grid cell's diagonal,
@@ -1886,14 +1888,14 @@ void refreshLampMaps(State& st, const Camera& cam, const SurfaceBuffers& surface
   st.maps.resize(st.pencilLamps.size());
   bool any = false;
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q)
-    any = any || (st.enabled[st.pencilLamps[q]] && st.pencils[q] && !st.culled[q]);
+    any = any || pencilOn(st, q);
   if (!any) return;
   const auto t0 = std::chrono::steady_clock::now();
   const double far = opt.edge_transmittance > 0.0 && kt > 0.0 ? -std::log(opt.edge_transmittance) / kt : 0.0;
   st.depthEdges.build(surface.distance.data(), cam.width, cam.height, st.fast.lamp_map_options.coarse_px,
                       opt.depth_edge_rel, far, pool);
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q) {
-    if (!st.enabled[st.pencilLamps[q]] || !st.pencils[q] || st.culled[q]) continue;
+    if (!pencilOn(st, q)) continue;
     LampMap& m = st.maps[q];
     m.build(*st.pencils[q], cam, st.depthEdges, st.fast.lamp_map_options, pool);
     st.mapNodes += m.stats().nodes;
@@ -1907,12 +1909,18 @@ void refreshLampMaps(State& st, const Camera& cam, const SurfaceBuffers& surface
 // lamp_guard_px of one.
 void locateLampImages(State& st, const Lamps& lamps, const CameraFrame& cf) {
   st.lampPixels.clear();
-  for (std::size_t li = 0; li < lamps.size(); ++li) {
-    if (!st.enabled[li] || st.culledLamp[li]) continue;
+  auto locate = [&](std::size_t li) {
     const Vec3 p = cf.toCamera(lamps[li].lamp().position_m);
-    if (p.x <= 0.0) continue;
+    if (p.x <= 0.0) return;
     st.lampPixels.emplace_back(cf.principal.x - cf.focal * p.y / p.x, cf.principal.y - cf.focal * p.z / p.x);
-  }
+  };
+  // Every lamp is in exactly one routing list; moving lamps left out of the frame
+  // (cullMovingLamps) have no image to guard.
+  for (const std::vector<std::size_t>* group : {&st.isoLamps, &st.viewLamps, &st.rayLamps})
+    for (std::size_t li : *group)
+      if (st.enabled[li]) locate(li);
+  for (std::size_t q = 0; q < st.pencilLamps.size(); ++q)
+    if (st.enabled[st.pencilLamps[q]] && !st.culled[q]) locate(st.pencilLamps[q]);
 }
 
 // Stage "plan the image": the frame's context for the image stages: coarse step, the distance
