@@ -70,6 +70,9 @@ class PsiBasis {
   /// Σ_i w[i] β_{j+i} on interval j as one cubic in s = (ψ − t_j)/(t_{j+1} − t_j):
   /// g[p] the coefficient of s^p.
   void combine(int j, const float w[4], double g[4]) const noexcept;
+  /// The four cubics that live on interval j, in s = (ψ − t_j)/(t_{j+1} − t_j): element
+  /// 4 i + p is the coefficient of s^p of function j + i (eval()'s, for callers that inline it).
+  [[nodiscard]] const double* polynomials(int j) const noexcept { return poly_.data() + static_cast<std::size_t>(j) * 16; }
   /// s of ψ on interval j (for combine()'s cubic).
   [[nodiscard]] double local(int j, double psi) const noexcept {
     return (psi - knots_[static_cast<std::size_t>(j)]) * invStep_[static_cast<std::size_t>(j)];
