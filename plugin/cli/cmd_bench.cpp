@@ -1178,52 +1178,69 @@ json againstPerRay(const AirlightImageEvaluator& reference, const Scene& scene, 
 // around the ramp, built first one by one (the service builds them in the background, nearest
 // first). Each frame reads the two rungs around its fog. The last frame against per ray and
 // against tables built at its own fog.
+// With `bendDegPerFrame` > 0 the ego lamps also bend continuously, that many degrees further
+// each frame (not on the rungs' angles), and the ladder has rungs every kBendStepDeg of bending
+// at each fog (docs/airlight.md, "Bending on the ladder"): each frame reads four rungs, each
+// turned rung through its rotation.
 json ladderRun(const Scene& still, const SurfaceBuffers& surface, unsigned threads, const BenchOptions& o, int n,
-               double steadyMs) {
-  constexpr double kRatio = 1.2;
+               double steadyMs, double bendDegPerFrame = 0.0) {
+  constexpr double kRatio = 1.2, kBendStepDeg = 1.0;
   FastPathOptions fast;
   fast.view_table_step_deg = o.viewTableStepDeg;
   auto pool = std::make_shared<ThreadPool>(threads);
+  auto bent = [&](Scene fs, double deg) {
+    const Mat3 turn = worldFromYawPitchRoll(radians(deg), 0.0, 0.0);
+    for (SceneLamp& l : fs.lamps)
+      if (l.mount == LampMount::Vehicle) l.lamp.worldFromLamp = turn * l.lamp.worldFromLamp;
+    return fs;
+  };
   auto sceneAt = [&](int f) {
-    Scene fs = still;
+    Scene fs = bent(still, bendDegPerFrame * f);
     fs.fog.extinction_per_m = extinctionFromVisibility(150.0 * std::pow(50.0 / 150.0, static_cast<double>(f) / (n - 1)));
     return fs;
   };
   const double lr = std::log(kRatio);
   const int m0 = static_cast<int>(std::floor(std::log(sceneAt(0).fog.extinction_per_m) / lr));
   const int m1 = static_cast<int>(std::ceil(std::log(sceneAt(n - 1).fog.extinction_per_m) / lr));
+  const int bends = bendDegPerFrame > 0.0 ? static_cast<int>(std::ceil(bendDegPerFrame * (n - 1) / kBendStepDeg)) : 0;
   std::vector<std::shared_ptr<const FogTables>> rungs;
   StageStats rungMs;
   std::size_t bytes = 0;
-  for (int m = m0; m <= m1; ++m) {
-    Scene rs = still;
-    rs.fog.extinction_per_m = std::pow(kRatio, m);
-    const auto t0 = Clock::now();
-    auto r = AirlightImageEvaluator::buildFogTables(rs, fast, pool);
-    if (!r) return {{"note", r.error().message}};
-    rungMs.ms.push_back(msSince(t0));
-    bytes += fogTablesBytes(**r);
-    rungs.push_back(std::move(r).value());
-  }
+  for (int m = m0; m <= m1; ++m)
+    for (int b = 0; b <= bends; ++b) {
+      Scene rs = bent(still, kBendStepDeg * b);
+      rs.fog.extinction_per_m = std::pow(kRatio, m);
+      const auto t0 = Clock::now();
+      auto r = AirlightImageEvaluator::buildFogTables(rs, fast, pool);
+      if (!r) return {{"note", r.error().message}};
+      rungMs.ms.push_back(msSince(t0));
+      bytes += fogTablesBytes(**r);
+      rungs.push_back(std::move(r).value());
+    }
   const Scene first = sceneAt(0);
   auto ev = AirlightImageEvaluator::build(first, AirlightMethod::Accurate, {}, pool, fast);
   if (!ev) return {{"note", ev.error().message}};
   AirlightImage img;
   ev->evaluate(first, surface, SubsamplingOptions{}, img);  // untimed: its own tables
-  ev->setFogLadder(rungs, kRatio);
+  ev->setFogLadder(rungs, kRatio, bendDegPerFrame > 0.0 ? kBendStepDeg : 0.0);
   StageStats frames;
-  int blended = 0;
+  int blended = 0, turned = 0;
   Scene last;
   for (int f = 0; f < n; ++f) {
     last = sceneAt(f);
     const auto t0 = Clock::now();
     if (Status st = ev->setFog(last.fog); !st) return {{"note", st.error().message}};
+    if (Status st = ev->setLampPoses(last); !st) return {{"note", st.error().message}};
     ev->evaluate(last, surface, SubsamplingOptions{}, img);
     frames.ms.push_back(msSince(t0));
     blended += img.fog_rungs == 2 ? 1 : 0;
+    turned += img.bending_rungs == 2 ? 1 : 0;
   }
   json out = frames.toJson();
   out["ratio"] = kRatio;
+  out["bend_step_deg"] = kBendStepDeg;
+  out["bend_deg_per_frame"] = bendDegPerFrame;
+  out["frames_turned"] = turned;
   out["rungs"] = rungs.size();
   out["rung_build"] = rungMs.toJson();
   out["rung_mb"] = static_cast<double>(bytes) / 1e6 / static_cast<double>(rungs.size());
@@ -1298,6 +1315,7 @@ json changesStage(const Scene& still, const SurfaceBuffers& surface, unsigned th
   }
   out["rebuilt_each_frame"] = rebuilt.toJson();
   out["ladder"] = ladderRun(still, surface, threads, o, n, steadyStats.median());
+  out["bending_ladder"] = ladderRun(still, surface, threads, o, n, steadyStats.median(), 0.1);
   json c = stats.toJson();
   const double steadyMs = steadyStats.median();
   c["vs_steady_median"] = steadyMs > 0.0 ? stats.median() / steadyMs : 0.0;
@@ -1630,6 +1648,23 @@ void printTraffic(const json& t) {
   printStage("changing fog, two rungs", l, note);
   printError("  ladder vs per ray", l["vs_per_ray"]);
   printError("  ladder vs tables at its fog", l["vs_tables_at_fog"]);
+  if (!c.contains("bending_ladder")) return;
+  const json& b = c["bending_ladder"];
+  if (b.contains("note")) {
+    std::printf("  bending ladder: %s\n", b["note"].get<std::string>().c_str());
+    return;
+  }
+  std::printf("fog and bending on the ladder (the same fogs, the ego lamps bending %.2f deg further every frame; "
+              "rungs every %.0f deg of bending at each fog, built first; each frame reads four, the turned ones through "
+              "their rotation)\n",
+              b["bend_deg_per_frame"].get<double>(), b["bend_step_deg"].get<double>());
+  std::snprintf(note, sizeof note, "  %zu rungs of %.1f MB", b["rungs"].get<std::size_t>(), b["rung_mb"].get<double>());
+  printStage("rung build, one at a time", b["rung_build"], note);
+  std::snprintf(note, sizeof note, "  %.1f x the steady frame (median), %.1f x (worst); %d read turned rungs",
+                b["vs_steady_median"].get<double>(), b["vs_steady_worst"].get<double>(), b["frames_turned"].get<int>());
+  printStage("changing fog and bending", b, note);
+  printError("  ladder vs per ray", b["vs_per_ray"]);
+  printError("  ladder vs tables at its pose", b["vs_tables_at_fog"]);
 }
 
 /// Issue 7's additions beyond the paper, each at its own size.

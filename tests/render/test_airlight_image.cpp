@@ -613,6 +613,103 @@ TEST(AirlightImage, FogLadderReadsTwoRungsAroundTheFog) {
   EXPECT_LT(img.table_seconds, 0.5);
 }
 
+// Bending on the ladder (setFogLadder's maxBendingDeg; docs/airlight.md, "Bending on the
+// ladder"): the ego's low beams bent 2.5° (turned about their positions), shown from rungs built
+// with them bent 2° and 3°, each read through its rotation and the two blended, against tables
+// built at 2.5°; with a fog between two fogs too (four rungs). The rungs blended without their
+// rotations would blur the cut-off: the nearer rung alone is several times further off.
+TEST(AirlightImage, BendingLadderReadsTwoTurnedRungs) {
+  const EgoLampsAndStreetLamp rig;
+  const SurfaceBuffers& surf = rig.surf;
+  const FastPathOptions& fast = rig.fast;
+  const double kt = rig.scene.fog.extinction_per_m;
+  auto pool = std::make_shared<ThreadPool>(0);
+  auto bent = [&](double deg, double k) {
+    Scene s = rig.at(k);
+    for (std::size_t i : {0u, 1u})
+      s.lamps[i].lamp.worldFromLamp = worldFromYawPitchRoll(radians(deg), 0.0, 0.0) * s.lamps[i].lamp.worldFromLamp;
+    return s;
+  };
+  auto imageOf = [&](const Scene& s, AirlightImage& img) {
+    auto e = AirlightImageEvaluator::build(s, AirlightMethod::Accurate, {}, pool, fast);
+    ASSERT_TRUE(e.has_value());
+    e->evaluate(s, surf, SubsamplingOptions{.full = true}, img);
+  };
+  const Scene frame = bent(2.5, kt);
+  AirlightImage exact, nearer;
+  imageOf(frame, exact);
+  imageOf(bent(2.0, kt), nearer);
+  auto rung = [&](double deg, double k) {
+    auto r = AirlightImageEvaluator::buildFogTables(bent(deg, k), fast, pool);
+    EXPECT_TRUE(r.has_value());
+    return r ? *r : nullptr;
+  };
+  const auto r2 = rung(2.0, kt), r3 = rung(3.0, kt);
+  ASSERT_TRUE(r2 && r3);
+
+  // An evaluator whose own tables are for the lamps unbent.
+  auto ev = AirlightImageEvaluator::build(rig.scene, AirlightMethod::Accurate, {}, pool, fast);
+  ASSERT_TRUE(ev.has_value());
+  AirlightImage img;
+  ev->evaluate(rig.scene, surf, SubsamplingOptions{.full = true}, img);
+  ev->setFogLadder({r2, r3}, 1.2, 1.0);
+  ASSERT_TRUE(ev->setLampPoses(frame));
+  EXPECT_TRUE(ev->viewTablesReady(frame.camera));
+  ev->evaluate(frame, surf, SubsamplingOptions{.full = true}, img);
+  EXPECT_EQ(img.fog_rungs, 1);
+  EXPECT_EQ(img.bending_rungs, 2);
+  const auto [p95, mx] = imageError(img, exact);
+  const auto [nearP95, nearMax] = imageError(nearer, exact);
+  std::printf("bent 2.5 deg from rungs at 2 and 3 deg: p95 %.2e max %.2e against tables at 2.5 deg (the 2 deg tables "
+              "alone: p95 %.2e max %.2e)\n",
+              p95, mx, nearP95, nearMax);
+  EXPECT_LE(p95, 4e-3);
+  EXPECT_LT(p95, 0.25 * nearP95);
+  EXPECT_LT(mx, 0.5 * nearMax);
+
+  // At a rung's own angle: that rung alone, unturned: the image of its tables.
+  ASSERT_TRUE(ev->setLampPoses(bent(2.0, kt)));
+  ev->evaluate(bent(2.0, kt), surf, SubsamplingOptions{.full = true}, img);
+  EXPECT_EQ(img.bending_rungs, 0);
+  EXPECT_EQ(img.fog_rungs, 1);
+  EXPECT_LE(imageError(img, nearer).second, 1e-6);
+
+  // Not served: rungs further apart than maxBendingDeg; a ladder without bending; rungs on one
+  // side only; one lamp bent and not the other (no rotation common to both).
+  ASSERT_TRUE(ev->setLampPoses(frame));
+  ev->setFogLadder({r2, r3}, 1.2, 0.9);
+  EXPECT_FALSE(ev->viewTablesReady(frame.camera));
+  ev->setFogLadder({r2, r3}, 1.2);
+  EXPECT_FALSE(ev->viewTablesReady(frame.camera));
+  ev->setFogLadder({r2, rung(2.2, kt)}, 1.2, 1.0);
+  EXPECT_FALSE(ev->viewTablesReady(frame.camera));
+  Scene one = frame;
+  one.lamps[1] = rig.scene.lamps[1];
+  ev->setFogLadder({r2, r3}, 1.2, 1.0);
+  ASSERT_TRUE(ev->setLampPoses(one));
+  EXPECT_FALSE(ev->viewTablesReady(one.camera));
+
+  // A fog between two rungs as well: four rungs, K_t / √1.2 and K_t √1.2 at 2° and 3°.
+  const double lo = kt / std::sqrt(1.2), hi = kt * std::sqrt(1.2);
+  ev->setFogLadder({rung(2.0, lo), rung(3.0, lo), rung(2.0, hi), rung(3.0, hi)}, 1.2, 1.0);
+  ASSERT_TRUE(ev->setLampPoses(frame));
+  EXPECT_TRUE(ev->viewTablesReady(frame.camera));
+  ev->evaluate(frame, surf, SubsamplingOptions{.full = true}, img);
+  EXPECT_EQ(img.fog_rungs, 2);
+  EXPECT_EQ(img.bending_rungs, 2);
+  const auto [p95FogBend, maxFogBend] = imageError(img, exact);
+  AirlightImage sub, exactSub;
+  ev->evaluate(frame, surf, SubsamplingOptions{}, sub);
+  auto own = AirlightImageEvaluator::build(frame, AirlightMethod::Accurate, {}, pool, fast);
+  ASSERT_TRUE(own.has_value());
+  own->evaluate(frame, surf, SubsamplingOptions{}, exactSub);
+  const auto [subP95, subMax] = imageError(sub, exactSub);
+  std::printf("and K_t between rungs 1.2 apart: p95 %.2e max %.2e (subsampled: p95 %.2e max %.2e)\n", p95FogBend,
+              maxFogBend, subP95, subMax);
+  EXPECT_LE(p95FogBend, 8e-3);
+  EXPECT_LE(subP95, 1e-2);
+}
+
 // An off-axis camera (one channel of a multi-screen cab) sees a window of a larger centred
 // camera with the same pose and focal length; its image must be that window of the centred
 // image. The window holds both vehicle lamps' images, so the view tables (whose window in the

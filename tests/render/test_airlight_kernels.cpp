@@ -458,6 +458,43 @@ TEST(AirlightKernels, ViewTableMatchesAccurateAndScalar) {
       [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
         kernels::accumulateViewTableScalar(vt, geo, px, r, g, bl);
       });
+
+  // Read through a rotation (the bending ladder: a rung made for the lamp turned by 1.5° about
+  // the camera's vertical, ViewTableUse::rotated), with the rotation off in a disc around a
+  // point of the view (a lamp's image): every target against the scalar definition; and the
+  // scalar read against the table looked up at the turned direction by hand.
+  kernels::ViewTableUse turned = kernels::ViewTableUse::of(vt);
+  turned.rotated = true;
+  const Mat3 qT = glm::transpose(worldFromYawPitchRoll(radians(1.5), 0.0, 0.0));
+  for (int row = 0; row < 3; ++row)
+    for (int col = 0; col < 3; ++col) turned.rot[3 * row + col] = static_cast<float>(qT[col][row]);
+  turned.nKeep = 1;
+  turned.keepA[0] = 0.1f;
+  turned.keepB[0] = -0.1f;
+  turned.keepR2[0] = 0.01f;
+  compareAllTargets(
+      b,
+      [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
+        kernels::accumulateViewTable(vt, turned, geo, px, r, g, bl);
+      },
+      [&](const kernels::PixelBatch& px, float* r, float* g, float* bl) {
+        kernels::accumulateViewTableScalar(vt, turned, geo, px, r, g, bl);
+      });
+  std::vector<float> z(kernels::paddedSize(b.n), 0.0f), rr = z, gg = z, bb = z;
+  kernels::accumulateViewTableScalar(vt, turned, geo, b.view(), rr.data(), gg.data(), bb.data());
+  int inside = 0, outside = 0;
+  for (std::size_t i = 0; i < b.n; ++i) {
+    const double a = (static_cast<double>(geo.cx) - static_cast<double>(b.x[i])) / f;
+    const double c = (static_cast<double>(geo.cy) - static_cast<double>(b.y[i])) / f;
+    const Vec3 dir = qT * Vec3(1.0, a, c);
+    const bool keep = (a - 0.1) * (a - 0.1) + (c + 0.1) * (c + 0.1) <= 0.01;
+    const double read = keep ? vt.lookupAnywhere(a, c, static_cast<double>(b.d[i]))
+                             : vt.lookupAnywhere(dir.y / dir.x, dir.z / dir.x, static_cast<double>(b.d[i]));
+    (keep ? inside : outside) += 1;
+    EXPECT_NEAR(rr[i], read * static_cast<double>(turned.weight[0]), 1e-4 * read + 1e-9) << "pixel " << i;
+  }
+  EXPECT_GT(inside, 10);
+  EXPECT_GT(outside, 500);
 }
 
 // Wide views (fogbeam render of a 170° camera never finished, one of 179.999° ran out of memory:

@@ -214,9 +214,11 @@ struct AirlightImageEvaluator::State {
     std::vector<TableUse> uses;
     std::uint64_t lastUse = 0;
   };
-  std::array<RungMerge, 3> rungMerges;
+  double ladderMaxBendingRad = 0.0;
+  std::array<RungMerge, 5> rungMerges;
   std::uint64_t frameCount = 0;
-  int fogRungs = 0;  // AirlightImage::fog_rungs of this frame
+  int fogRungs = 0;      // AirlightImage::fog_rungs of this frame
+  int bendingRungs = 0;  // AirlightImage::bending_rungs of this frame
   std::vector<kernels::IsoLamp> isoParams;  // this frame, capacity kept
   // Per isoLamps entry: its IsoSky table (2·kIsoSkyNodes floats) and what it was built for
   // (distance and extinction; rebuilt when either changes, i.e. whenever eye or lamp moves).
@@ -1472,28 +1474,63 @@ bool ownTablesServe(const State& st, const Lamps& lamps, const CameraFrame& cf) 
   return true;
 }
 
-// The rungs of the fog ladder a frame reads: `lo` alone (w = 0, hi null) when a rung was made
-// for the frame's K_t, else the nearest rungs below and above, hi weighted by w.
+// Rotations equal up to rounding (the tolerance of ViewKey::sameAs, on unit-vector components).
+bool sameRotation(const Mat3& a, const Mat3& b) noexcept {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (std::abs(a[i][j] - b[i][j]) > 1e-7) return false;
+  return true;
+}
+bool isIdentity(const Mat3& a) noexcept { return sameRotation(a, Mat3(1.0)); }
+
+// The rungs of the ladder a frame reads (at most two fogs × two bending angles), each with its
+// weight and, for a rung made for the lamps turned by a rotation Q about their positions, the
+// rotation Qᵀ its tables are read through (ViewTableUse::rotated).
 struct LadderPick {
-  const FogTables* lo = nullptr;
-  const FogTables* hi = nullptr;
-  double w = 0.0;
+  struct Read {
+    const FogTables* rung = nullptr;
+    double w = 0.0;
+    bool rotated = false;
+    Mat3 qT{1.0};        // camera frame: the direction a pixel's ray is read at in the rung
+    double angle = 0.0;  // the rung's turn from the frame's poses, radians
+  };
+  std::array<Read, 4> reads;
+  int n = 0;
+  int fogRungs = 0;      // AirlightImage::fog_rungs
+  int bendingRungs = 0;  // AirlightImage::bending_rungs
 };
 
 // The rungs that serve this frame (setFogLadder's rule), if any: made for the same lamps (profile,
-// colour, order; tables for every lamp on), poses relative to the camera, frustum and albedo,
-// and K_t at most ladderMaxRatio apart around the frame's.
+// colour, order; tables for every lamp on), positions relative to the camera, frustum and
+// albedo, and K_t at most ladderMaxRatio apart around the frame's. Their orientations are the
+// frame's, or (bending, ladderMaxBendingRad > 0) the frame's turned by one rotation Q common
+// to every lamp, about one axis for all rungs: then per fog the nearest rung turned one way and
+// the nearest turned the other, at most ladderMaxBendingRad apart, are blended with the weights
+// that cancel their rotations (docs/airlight.md, "Bending on the ladder").
 std::optional<LadderPick> pickRungs(const State& st, const Lamps& lamps, const CameraFrame& cf) {
   const std::size_t nv = st.viewLamps.size();
   if (st.ladder.empty() || nv == 0) return std::nullopt;
   // Per thread, kept: a ladder frame asks twice (the service's viewTablesReady, then the frame),
   // and neither should allocate.
   thread_local std::vector<ViewKey> keys;
+  struct Fit {
+    const FogTables* rung;
+    double s;  // signed angle of the rung's rotation about the common axis (0: the frame's poses)
+    Mat3 qT;
+  };
+  thread_local std::vector<Fit> fitting;
   keys.clear();
+  fitting.clear();
   for (std::size_t v = 0; v < nv; ++v) keys.push_back(viewKeyOf(lamps[st.viewLamps[v]], cf));
   const double kt = keys[0].kt;  // setFog gives every lamp the same fog
-  auto fits = [&](const FogTables& r) {
+  const bool bending = st.ladderMaxBendingRad > 0.0;
+  Vec3 axis(0.0);  // the common rotation axis, from the first turned rung
+  // Whether rung r serves the frame's lamps, and through which rotation: Q = M_frame · M_rungᵀ
+  // per lamp (camera frame), the same for every lamp on.
+  auto fits = [&](const FogTables& r, Fit& out) {
     if (r.keys.size() != nv) return false;
+    bool first = true;
+    Mat3 q(1.0);
     for (std::size_t v = 0; v < nv; ++v) {
       const Lamp& lamp = lamps[st.viewLamps[v]].lamp();
       if (r.profiles[v].get() != lamp.profile.get() || r.colours[v] != lamp.color) return false;
@@ -1501,21 +1538,110 @@ std::optional<LadderPick> pickRungs(const State& st, const Lamps& lamps, const C
       if (!r.built[v]) return false;
       ViewKey k = keys[v];
       k.kt = r.kt;
-      if (!r.keys[v].sameAs(k)) return false;  // pose, frustum, albedo
+      if (r.keys[v].sameAs(k)) {
+        if (!first && !isIdentity(q)) return false;
+        first = false;
+        continue;
+      }
+      if (!bending) return false;
+      k.lampAxesInCamera = r.keys[v].lampAxesInCamera;
+      if (!r.keys[v].sameAs(k)) return false;  // position, frustum, albedo
+      const Mat3 qv = keys[v].lampAxesInCamera * glm::transpose(r.keys[v].lampAxesInCamera);
+      if (first) {
+        q = qv;
+        first = false;
+      } else if (!sameRotation(q, qv)) {
+        return false;
+      }
     }
+    out.rung = &r;
+    out.qT = glm::transpose(q);
+    out.s = 0.0;
+    if (isIdentity(q)) return true;
+    // sin φ · u from the antisymmetric part; the rung is the frame turned by −φ about u.
+    const Vec3 w(q[1][2] - q[2][1], q[2][0] - q[0][2], q[0][1] - q[1][0]);
+    const double sinPhi = 0.5 * glm::length(w);
+    const Vec3 u = w / (2.0 * sinPhi);
+    if (glm::length(axis) == 0.0) axis = u;
+    const double c = glm::dot(u, axis);
+    if (glm::length(glm::cross(u, axis)) > 1e-3) return false;  // another axis: not this ladder
+    const double phi = std::atan2(sinPhi, 0.5 * (q[0][0] + q[1][1] + q[2][2] - 1.0));
+    out.s = c > 0.0 ? phi : -phi;
     return true;
   };
-  const FogTables* lo = nullptr;
-  const FogTables* hi = nullptr;
   for (const auto& r : st.ladder) {
-    if (!fits(*r)) continue;
-    if (r->kt <= kt && (!lo || r->kt > lo->kt)) lo = r.get();
-    if (r->kt >= kt && (!hi || r->kt < hi->kt)) hi = r.get();
+    Fit f{};
+    if (fits(*r, f)) fitting.push_back(f);
   }
-  if (lo && lo->kt == kt) return LadderPick{lo, nullptr, 0.0};
-  if (hi && hi->kt == kt) return LadderPick{hi, nullptr, 0.0};
-  if (!lo || !hi || hi->kt > lo->kt * st.ladderMaxRatio * (1.0 + 1e-12)) return std::nullopt;
-  return LadderPick{lo, hi, std::log(kt / lo->kt) / std::log(hi->kt / lo->kt)};
+  // Per fog level: the rung at the frame's poses alone, else the nearest on either side of them.
+  struct Level {
+    LadderPick::Read a, b;
+    int n = 0;
+  };
+  auto levelAt = [&](double levelKt, Level& out) {
+    const Fit* exact = nullptr;
+    const Fit* pos = nullptr;
+    const Fit* neg = nullptr;
+    for (const Fit& f : fitting) {
+      if (f.rung->kt != levelKt) continue;
+      if (f.s == 0.0) exact = &f;
+      else if (f.s > 0.0 && (!pos || f.s < pos->s)) pos = &f;
+      else if (f.s < 0.0 && (!neg || f.s > neg->s)) neg = &f;
+    }
+    if (exact) {
+      out.a = {exact->rung, 1.0, false, Mat3(1.0), 0.0};
+      out.n = 1;
+      return true;
+    }
+    if (!pos || !neg || pos->s - neg->s > st.ladderMaxBendingRad * (1.0 + 1e-9)) return false;
+    // Turned reads keep off at most kMaxKeep lamps' images (readLadder).
+    int images = 0;
+    for (std::size_t v = 0; v < pos->rung->built.size(); ++v)
+      images += pos->rung->built[v] && pos->rung->tables[kTablesPerLamp * v].innerR2 > 0.0f ? 1 : 0;
+    if (images > kernels::ViewTableUse::kMaxKeep) return false;
+    // w₊ s₊ + w₋ s₋ = 0: the rotations' first-order errors (the eye seen from the turned lamp
+    // moves by Q's turn of O − S) cancel.
+    const double wPos = -neg->s / (pos->s - neg->s);
+    out.a = {pos->rung, wPos, true, pos->qT, pos->s};
+    out.b = {neg->rung, 1.0 - wPos, true, neg->qT, neg->s};
+    out.n = 2;
+    return true;
+  };
+  // The fog levels: the frame's K_t itself, else the nearest below and above that serve.
+  double lo = -1.0, hi = -1.0;
+  Level levelLo, levelHi;
+  for (const Fit& f : fitting) {
+    const double k = f.rung->kt;
+    Level l;
+    if (k <= kt && (lo < 0.0 || k > lo) && levelAt(k, l)) {
+      lo = k;
+      levelLo = l;
+    }
+    if (k >= kt && (hi < 0.0 || k < hi) && levelAt(k, l)) {
+      hi = k;
+      levelHi = l;
+    }
+  }
+  LadderPick pick;
+  auto take = [&](const Level& l, double w) {
+    for (int i = 0; i < l.n; ++i) {
+      LadderPick::Read r = i == 0 ? l.a : l.b;
+      r.w *= w;
+      pick.reads[static_cast<std::size_t>(pick.n++)] = r;
+    }
+    pick.bendingRungs = l.n == 2 ? 2 : 0;
+  };
+  if (lo == kt || hi == kt) {
+    take(lo == kt ? levelLo : levelHi, 1.0);
+    pick.fogRungs = 1;
+    return pick;
+  }
+  if (lo < 0.0 || hi < 0.0 || hi > lo * st.ladderMaxRatio * (1.0 + 1e-12)) return std::nullopt;
+  const double w = std::log(kt / lo) / std::log(hi / lo);
+  take(levelLo, 1.0 - w);
+  take(levelHi, w);
+  pick.fogRungs = 2;
+  return pick;
 }
 
 // A rung's tables merged for this frame's enabled lamps (as mergeViewTables merges the own
@@ -1549,18 +1675,53 @@ const std::vector<State::TableUse>& rungMerge(State& st, const FogTables& rung, 
 double readLadder(State& st, const LadderPick& pick) {
   double seconds = 0.0;
   st.tableUses.clear();
-  auto add = [&](const FogTables& rung, double w) {
-    if (w <= 0.0) return;
-    for (State::TableUse tu : rungMerge(st, rung, seconds)) {
-      for (float& x : tu.use.weight) x = static_cast<float>(static_cast<double>(x) * w);
+  // Turned reads keep off the lamps' images: within the frustum table's hole around each image,
+  // widened by the farthest a read moves there (a turn by φ moves a direction near (a, b) by at
+  // most φ (1 + a² + b²) in tangent units), every table is read unturned (ViewTableUse::keepA).
+  // Their frustum tables' holes are those of the first rung read (they depend on the lamps'
+  // positions and the frustum alone).
+  kernels::ViewTableUse keep;
+  if (pick.bendingRungs > 0) {
+    double phi = 0.0;
+    for (int i = 0; i < pick.n; ++i)
+      if (pick.reads[static_cast<std::size_t>(i)].rotated)
+        phi = std::max(phi, std::abs(pick.reads[static_cast<std::size_t>(i)].angle));
+    const FogTables& first = *pick.reads[0].rung;
+    for (std::size_t v = 0; v < first.built.size(); ++v) {
+      const kernels::ViewTable& frustum = first.tables[kTablesPerLamp * v];
+      if (!first.built[v] || frustum.data.empty() || !(frustum.innerR2 > 0.0f)) continue;
+      if (keep.nKeep == kernels::ViewTableUse::kMaxKeep) break;  // pickRungs allows no more
+      const double ga = frustum.guardA, gb = frustum.guardB;
+      const double r = std::sqrt(static_cast<double>(frustum.innerR2)) + 1.25 * phi * (1.0 + ga * ga + gb * gb);
+      const int k = keep.nKeep++;
+      keep.keepA[k] = frustum.guardA;
+      keep.keepB[k] = frustum.guardB;
+      keep.keepR2[k] = static_cast<float>(r * r);
+    }
+  }
+  for (int i = 0; i < pick.n; ++i) {
+    const LadderPick::Read& r = pick.reads[static_cast<std::size_t>(i)];
+    if (r.w <= 0.0) continue;
+    for (State::TableUse tu : rungMerge(st, *r.rung, seconds)) {
+      for (float& x : tu.use.weight) x = static_cast<float>(static_cast<double>(x) * r.w);
+      if (r.rotated) {
+        tu.use.rotated = true;
+        for (int row = 0; row < 3; ++row)
+          for (int col = 0; col < 3; ++col) tu.use.rot[3 * row + col] = static_cast<float>(r.qT[col][row]);
+        tu.use.nKeep = keep.nKeep;
+        for (int k = 0; k < keep.nKeep; ++k) {
+          tu.use.keepA[k] = keep.keepA[k];
+          tu.use.keepB[k] = keep.keepB[k];
+          tu.use.keepR2[k] = keep.keepR2[k];
+        }
+      }
       st.tableUses.push_back(tu);
     }
-  };
-  add(*pick.lo, pick.hi ? 1.0 - pick.w : 1.0);
-  if (pick.hi) add(*pick.hi, pick.w);
-  st.frameGuards = pick.lo->guards;
+  }
+  st.frameGuards = pick.reads[0].rung->guards;  // they depend on the lamps' positions alone
   st.mergedValid = false;
-  st.fogRungs = pick.hi ? 2 : 1;
+  st.fogRungs = pick.fogRungs;
+  st.bendingRungs = pick.bendingRungs;
   return seconds;
 }
 
@@ -1575,6 +1736,7 @@ double refreshViewTables(State& st, const Lamps& lamps, ThreadPool& pool, const 
   double seconds = 0.0;
   ++st.frameCount;
   st.fogRungs = 0;
+  st.bendingRungs = 0;
   for (std::size_t v = 0; v < st.viewLamps.size(); ++v) st.viewEnabled[v] = st.enabled[st.viewLamps[v]];
   if (!st.ladder.empty() && !ownTablesServe(st, lamps, cf))
     if (const std::optional<LadderPick> pick = pickRungs(st, lamps, cf)) return readLadder(st, *pick);
@@ -2387,6 +2549,7 @@ void AirlightImageEvaluator::evaluate(const Scene& scene, const SurfaceBuffers& 
   out.table_seconds += refreshViewTables(st, lamps_, *pool_, cf);
   out.view_tables_loaded = st.tablesLoaded;
   out.fog_rungs = st.fogRungs;
+  out.bending_rungs = st.bendingRungs;
   if (!st.tableCacheError.empty()) out.table_cache_error.swap(st.tableCacheError);
   cullMovingLamps(st, lamps_, cf, scene.fog.extinction_per_m, scene.fog.albedo);
   out.moving_culled = st.culledCount;
@@ -2461,7 +2624,8 @@ Result<std::shared_ptr<const FogTables>> AirlightImageEvaluator::buildFogTables(
   return std::shared_ptr<const FogTables>(std::move(rung));
 }
 
-void AirlightImageEvaluator::setFogLadder(std::vector<std::shared_ptr<const FogTables>> rungs, double maxRatio) {
+void AirlightImageEvaluator::setFogLadder(std::vector<std::shared_ptr<const FogTables>> rungs, double maxRatio,
+                                          double maxBendingDeg) {
   State& st = *state_;
   std::sort(rungs.begin(), rungs.end(), [](const auto& a, const auto& b) { return a->kt < b->kt; });
   // Merges of rungs that leave the ladder are dropped: a new rung may be built at the address of
@@ -2472,6 +2636,7 @@ void AirlightImageEvaluator::setFogLadder(std::vector<std::shared_ptr<const FogT
   }
   st.ladder = std::move(rungs);
   st.ladderMaxRatio = std::max(1.0, maxRatio);
+  st.ladderMaxBendingRad = std::max(0.0, maxBendingDeg) * kPi / 180.0;
 }
 
 bool AirlightImageEvaluator::viewTablesReady(const Camera& camera) const {

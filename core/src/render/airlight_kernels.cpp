@@ -440,7 +440,20 @@ void accumulateViewTableScalar(const ViewTable& table, const ViewTableUse& use, 
     const double da = a - dbl(use.guardA), db = bb - dbl(use.guardB);
     const double r2 = da * da + db * db;
     if (!(r2 > dbl(use.innerR2) && r2 <= dbl(use.outerR2))) continue;
-    const double lm = table.lookupAnywhere(a, bb, dbl(px.d[i]));
+    double ta = a, tb = bb;
+    bool turn = use.rotated;
+    for (int k = 0; k < use.nKeep && turn; ++k) {
+      const double ka = a - dbl(use.keepA[k]), kb = bb - dbl(use.keepB[k]);
+      turn = ka * ka + kb * kb > dbl(use.keepR2[k]);
+    }
+    if (turn) {
+      const float* m = use.rot;
+      const double x = dbl(m[0]) + dbl(m[1]) * a + dbl(m[2]) * bb;
+      if (!(x > 0.0)) continue;
+      ta = (dbl(m[3]) + dbl(m[4]) * a + dbl(m[5]) * bb) / x;
+      tb = (dbl(m[6]) + dbl(m[7]) * a + dbl(m[8]) * bb) / x;
+    }
+    const double lm = table.lookupAnywhere(ta, tb, dbl(px.d[i]));
     r[i] += static_cast<float>(lm * dbl(use.weight[0]));
     gr[i] += static_cast<float>(lm * dbl(use.weight[1]));
     b[i] += static_cast<float>(lm * dbl(use.weight[2]));

@@ -237,13 +237,31 @@ void AccumulateViewTable(const ViewTable& table, const ViewTableUse& use, const 
     const VF bb = hn::Mul(hn::Sub(hn::Set(d, g.cy), y), hn::Set(d, g.invF));
     const VF ga = hn::Sub(a, hn::Set(d, use.guardA)), gb = hn::Sub(bb, hn::Set(d, use.guardB));
     const VF r2 = hn::MulAdd(ga, ga, hn::Mul(gb, gb));
-    const auto covered = hn::And(hn::And(hn::Gt(r2, hn::Set(d, use.innerR2)), hn::Le(r2, hn::Set(d, use.outerR2))),
-                                 hn::Gt(dist, hn::Zero(d)));
+    auto covered = hn::And(hn::And(hn::Gt(r2, hn::Set(d, use.innerR2)), hn::Le(r2, hn::Set(d, use.outerR2))),
+                           hn::Gt(dist, hn::Zero(d)));
+    VF la = a, lb = bb;  // where the table is read
+    if (use.rotated) {
+      auto turn = hn::FirstN(d, N);
+      for (int k = 0; k < use.nKeep; ++k) {
+        const VF ka = hn::Sub(a, hn::Set(d, use.keepA[k])), kb = hn::Sub(bb, hn::Set(d, use.keepB[k]));
+        turn = hn::And(turn, hn::Gt(hn::MulAdd(ka, ka, hn::Mul(kb, kb)), hn::Set(d, use.keepR2[k])));
+      }
+      const float* m = use.rot;
+      const VF xr = hn::MulAdd(hn::Set(d, m[2]), bb, hn::MulAdd(hn::Set(d, m[1]), a, hn::Set(d, m[0])));
+      const auto ahead = hn::Gt(xr, hn::Zero(d));
+      covered = hn::And(covered, hn::Or(hn::Not(turn), ahead));
+      // x' > 0 where turned and covered; elsewhere 1, so that the division stays finite.
+      const VF inv = hn::Div(hn::Set(d, 1.0f), hn::IfThenElse(hn::And(turn, ahead), xr, hn::Set(d, 1.0f)));
+      const VF ra = hn::Mul(hn::MulAdd(hn::Set(d, m[5]), bb, hn::MulAdd(hn::Set(d, m[4]), a, hn::Set(d, m[3]))), inv);
+      const VF rb = hn::Mul(hn::MulAdd(hn::Set(d, m[8]), bb, hn::MulAdd(hn::Set(d, m[7]), a, hn::Set(d, m[6]))), inv);
+      la = hn::IfThenElse(turn, ra, a);
+      lb = hn::IfThenElse(turn, rb, bb);
+    }
     if (hn::AllFalse(d, covered)) continue;
     VI ia, ib;
     VF ta, tb;
-    Cell(d, di, hn::Mul(hn::Sub(a, hn::Set(d, table.a0)), hn::Set(d, table.invStep)), nAm2, ia, ta);
-    Cell(d, di, hn::Mul(hn::Sub(bb, hn::Set(d, table.b0)), hn::Set(d, table.invStep)), nBm2, ib, tb);
+    Cell(d, di, hn::Mul(hn::Sub(la, hn::Set(d, table.a0)), hn::Set(d, table.invStep)), nAm2, ia, ta);
+    Cell(d, di, hn::Mul(hn::Sub(lb, hn::Set(d, table.b0)), hn::Set(d, table.invStep)), nBm2, ib, tb);
     VF l00, l10, l01, l11;
     Lanes at;
     if (hn::AllTrue(d, hn::Ge(dist, hn::Set(d, 3.0e38f)))) {

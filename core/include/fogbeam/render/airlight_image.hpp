@@ -161,6 +161,9 @@ struct AirlightImage {
   /// (AirlightImageEvaluator::setFogLadder): 0 = the evaluator's own tables (or none), 1 = a rung
   /// at the frame's K_t, 2 = two rungs around it, blended.
   int fog_rungs = 0;
+  /// Rungs read per fog through a rotation this frame (setFogLadder's maxBendingDeg): 0 = rungs
+  /// made for the lamps' poses (or none), 2 = the two rungs around the lamps' bending, blended.
+  int bending_rungs = 0;
   std::string table_cache_error;       ///< the last failure to write the table cache (empty: none)
   double map_seconds = 0.0;      ///< part of `seconds` spent building the moving lamps' maps (every frame)
   std::size_t map_nodes = 0;     ///< directions evaluated for those maps
@@ -258,7 +261,16 @@ class AirlightImageEvaluator {
   /// rung at its K_t exactly is read alone. Frames that the own tables serve, or that no two
   /// rungs bracket, go on as before (the latter build). Replaces the previous set (empty: off);
   /// the rungs are kept alive by the evaluator. Not thread-safe with evaluate().
-  void setFogLadder(std::vector<std::shared_ptr<const FogTables>> rungs, double maxRatio);
+  ///
+  /// `maxBendingDeg` > 0 also puts bending on the ladder (docs/airlight.md, "Bending on the
+  /// ladder"): rungs made for the lamps at the frame's positions but turned, all by one rotation
+  /// Q about one axis (a headlamp's bending about the vehicle's vertical), serve the frame when
+  /// per fog one rung is turned each way, at most `maxBendingDeg` apart: each is read through
+  /// its rotation (the table at Qᵀ·d for the ray d) and the two are blended with the weights
+  /// that cancel their rotations (p95 1.5e-3 against tables at the frame's angle for rungs 1°
+  /// apart, the ego's low beams). With a fog between two rungs, four rungs are read.
+  void setFogLadder(std::vector<std::shared_ptr<const FogTables>> rungs, double maxRatio,
+                    double maxBendingDeg = 0.0);
   /// True when evaluate() of `camera`'s view, with the lamps' current poses and fog (setFog,
   /// setLampPoses), reads every vehicle lamp's view tables without building (its own tables or
   /// the ladder's); true without vehicle lamps. What the service checks before a table frame.

@@ -207,10 +207,25 @@ void accumulateIsoLamps(const IsoTable& table, const IsoLamp* lamps, std::size_t
 /// around (guardA, guardB) where it counts. of() gives the table's own; a merged table's
 /// correction inside one lamp's hole reads that lamp's frustum table with its weights negated
 /// and the hole as the disc.
+///
+/// `rotated`: the table is read at the direction rot · (1, a, b) instead of (1, a, b) (camera
+/// frame, row-major 3×3), i.e. at (a', b') = (y'/x', z'/x'): a table made for a lamp turned by
+/// a rotation Q about its own position, read for the lamp as it is now, takes rot = Qᵀ (the
+/// bending ladder, docs/airlight.md "Bending on the ladder"). The annulus is tested at the
+/// pixel's own (a, b): the lamp's image does not move when it turns about its position. Rays
+/// turned behind the eye (x' ≤ 0) read nothing. Inside the `nKeep` discs (centre keepA/keepB,
+/// squared radius keepR2, tangent units: the lamps' images) the table is read unturned: there
+/// the turn moves the reads into the peak around a lamp's image, where the eye's offset from
+/// the turned lamp is not small against the ray's distance from it.
 struct ViewTableUse {
+  static constexpr int kMaxKeep = 4;
   float weight[3] = {1, 1, 1};
   float guardA = 0.0f, guardB = 0.0f;
   float innerR2 = -1.0f, outerR2 = 3.0e38f;
+  bool rotated = false;
+  float rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  int nKeep = 0;
+  float keepA[kMaxKeep] = {}, keepB[kMaxKeep] = {}, keepR2[kMaxKeep] = {};
   [[nodiscard]] static ViewTableUse of(const ViewTable& t) noexcept;
 };
 
