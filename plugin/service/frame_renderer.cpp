@@ -96,6 +96,10 @@ struct TableKey {
   }
 };
 
+/// Frames a want must hold before its exact tables are built while a ladder serves it (half a
+/// second at 30 frames/s): updateTables.
+constexpr int kLadderHoldFrames = 15;
+
 /// The fog ladder's base of a key: its fog with K_t set to 1 /m (what the rungs share besides
 /// their K_t) and its bending.
 TableKey ladderBase(const TableKey& k) {
@@ -279,6 +283,21 @@ struct ChannelRenderer::Impl {
   /// The ego lamps' light bits (egoLightBits: every rig lamp's) the rungs were made for (the
   /// lamps they tabulate), and those of the rung being built.
   std::uint32_t egoLightBits = 0, rungLights = 0, rungBuildLights = 0;
+  /// The bending ladder ([render] bending_ladder_step_deg; docs/service.md, "The bending
+  /// ladder"): rungs of the ego lamps' view tables at bending j · bendStep (by j) for the exact
+  /// fog of bendBase, built in the fog ladder's background slot (rungBuildBending says which
+  /// kind is building) and taken as fog rungs are. Only for a rig with bending lamps.
+  double bendStep = 0.0;
+  std::map<int, std::shared_ptr<const FogTables>> bendRungs;
+  TableKey bendBase;
+  bool bendBaseSet = false;
+  std::uint32_t bendLights = 0;
+  bool rungBuildBending = false;
+  /// Frames in a row whose bending angle differs from the previous frame's, its direction and
+  /// last step (deg): rungs are built ahead of a wheel that keeps turning.
+  int bendChanging = 0, bendTrend = 0;
+  double lastBend = 0.0, bendStepPerFrame = 0.0;
+  std::int64_t lastBendChange = 0;  ///< frameIndex of the last change of angle
   std::uint64_t ladderMisses = 0;  ///< ladder frames the evaluator could not serve (per pixel instead)
   std::uint64_t droppedLamps = 0;  ///< traffic lamps left out by [render] max_moving_lamps, summed over frames
 
@@ -292,6 +311,9 @@ struct ChannelRenderer::Impl {
     /// The tables' evaluator reads two rungs of the fog ladder (`rungs`, set `rungsVersion`)
     /// for the ego lamps (useTables is then true).
     bool ladder = false;
+    /// The rungs read are the bending ladder's (the frame shows its own bending angle), not the
+    /// fog ladder's (the rungs' angle, within bending_tolerance_deg).
+    bool bendingLadder = false;
     std::vector<std::shared_ptr<const FogTables>> rungs;
     std::uint64_t rungsVersion = 0;
     bool trafficLive = false;  ///< live traffic objects with a rig (their lamps go per pixel)
@@ -354,6 +376,16 @@ struct ChannelRenderer::Impl {
   [[nodiscard]] Status updateTables(const VehiclePose& pose, const TableKey& want, bool wait, Begun& b);
   [[nodiscard]] Status updateLadder(const VehiclePose& pose, const TableKey& want, bool wait, bool served, Begun& b);
   void startRung(const VehiclePose& pose, int index);
+  void startBendRung(const VehiclePose& pose, int index);
+  /// Starts the background build of one rung of either ladder: the tables for `key`, recorded
+  /// as rung `index` of the ladder whose base is `base` (lamps `lights` on).
+  void startRungBuild(const VehiclePose& pose, const TableKey& key, const TableKey& base, std::uint32_t lights,
+                      int index, bool bending);
+  /// The bending ladder's part of updateLadder: takes nothing, starts at most one rung (when
+  /// `mayStart`), sets b.ladder / b.bendingLadder when its rungs serve the frame.
+  /// `idleRungs`: while frames are cheap, build up to that many rungs nearest the angle.
+  void updateBendingLadder(const VehiclePose& pose, const TableKey& want, bool served, bool wait, bool mayStart,
+                           int idleRungs, std::uint32_t lights, Begun& b);
   void litLamps(std::uint32_t lights, Begun& b);
   /// Per lamp of sceneFor()'s scenes (`count` of them): on (1) or off by the light bits.
   [[nodiscard]] std::vector<char> lampsOn(std::uint32_t lights, std::size_t count) const;
@@ -430,6 +462,8 @@ Result<std::unique_ptr<ChannelRenderer>> ChannelRenderer::create(const ServiceCo
   for (const auto& [cls, rig] : config.traffic) impl->trafficPoints.emplace(&rig, expandRig(rig));
   impl->perPixelPending = config.pending_tables == "per-pixel";
   impl->ladderRatio = impl->perPixelPending ? config.fog_ladder_ratio : 0.0;
+  const bool bends = std::any_of(config.ego.lamps.begin(), config.ego.lamps.end(), [](const RigLamp& l) { return l.bending; });
+  impl->bendStep = impl->perPixelPending && bends ? config.bending_ladder_step_deg : 0.0;
   for (const RigLamp& l : config.ego.lamps) impl->egoLightBits |= l.light_bit;
   impl->framePool = std::make_shared<ThreadPool>(config.threads);
   if (config.effects.render.airlight == AirlightDevice::Gpu) {
@@ -523,7 +557,12 @@ Status ChannelRenderer::Impl::updateTables(const VehiclePose& pose, const TableK
     lastWant = want;
     b.useTables = tablesBuilt && current.serves(want, tol);
     if (Status s = updateLadder(pose, want, wait, b.useTables, b); !s) return s;
-    if (!b.useTables && !building.valid() && wantHeld >= 2) startBuild(pose, want);
+    // The exact build for a want that holds: after two frames when frames go per pixel; after
+    // kLadderHoldFrames when a ladder serves them (a wheel that moves in steps holds each angle
+    // a few frames, and a build started then would keep the slot from the rungs ahead of it,
+    // only to be taken after the angle has moved on; a build is a rung's work).
+    const int hold = b.ladder ? kLadderHoldFrames : 2;
+    if (!b.useTables && !building.valid() && wantHeld >= hold) startBuild(pose, want);
     if (b.ladder) b.useTables = true;
     return Ok{};
   }
@@ -563,9 +602,12 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
   // is heading. Frames off the ladder (per pixel) need the cores: no rung is started then. A
   // rung is taken as table builds are, free-running when done, lock-step and replay
   // fog_ladder_adopt_frames after it started (so that runs repeat). Rungs hold the ego lamps the
-  // frame's light bits switch on: other bits, another ladder.
+  // frame's light bits switch on: other bits, another ladder. The bending ladder
+  // (updateBendingLadder) shares the build slot: a frame whose bending angle the tables do not
+  // serve, in the fog of its rungs, reads the two rungs around its angle.
   b.ladder = false;
-  if (ladderRatio <= 1.0) return Ok{};
+  b.bendingLadder = false;
+  if (ladderRatio <= 1.0 && bendStep <= 0.0) return Ok{};
   if (rungBuilding.valid()) {
     const bool take = wait ? frameIndex >= rungStart + config->fog_ladder_adopt_frames
                            : rungBuilding.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
@@ -573,94 +615,151 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
       lastRungFrames = static_cast<double>(frameIndex - rungStart);
       auto built = rungBuilding.get();
       if (!built) return built.error();
-      if (rungBaseSet && rungBuildBase == rungBase && rungBuildLights == rungLights) {
+      if (rungBuildBending) {
+        if (bendBaseSet && rungBuildBase == bendBase && rungBuildLights == bendLights) {
+          bendRungs[rungBuildIndex] = std::move(built).value();
+          ++rungsVersion;
+        }
+      } else if (rungBaseSet && rungBuildBase == rungBase && rungBuildLights == rungLights) {
         rungs[rungBuildIndex] = std::move(built).value();
         ++rungsVersion;
       }
     }
   }
-  // Another fog (its K_t aside), a bending angle beyond the tolerance or other ego lamps on: a
-  // new ladder.
-  const TableKey base = ladderBase(want);
   const std::uint32_t lights = b.lights & egoLightBits;
-  if (!rungBaseSet || !rungBase.serves(base, config->bending_tolerance_deg) || lights != rungLights) {
-    if (!rungs.empty()) ++rungsVersion;
-    rungs.clear();
-    rungBase = base;
-    rungLights = lights;
-    rungBaseSet = true;
-  }
-  const double kt = ktOf(want.fog);
-  // ln K_t's change over the last frame, while it changes the same way.
-  double step = 0.0;
-  if (lastKt > 0.0 && std::abs(kt - lastKt) > 1e-6 * kt) {
-    const int trend = kt > lastKt ? 1 : -1;
-    fogChanging = trend == fogTrend ? fogChanging + 1 : 1;
-    fogTrend = trend;
-    step = std::log(kt / lastKt);
-  } else {
-    fogChanging = 0;
-  }
-  lastKt = kt;
-  const double lr = std::log(ladderRatio);
-  const int m = static_cast<int>(std::floor(std::log(kt) / lr));
-  const bool onLadder = rungs.count(m) != 0 && rungs.count(m + 1) != 0;
-  if (!served && onLadder && fogChanging >= 2 && !rungBuilding.valid() && !building.valid()) {
-    // Where the fog will be when this build is taken, at its present rate: fog_ladder_adopt_frames
-    // ahead (lock-step, replay), or as many frames as the last rung took (free-running). The
-    // rungs around that fog first (nearer first), the next one beyond it, then those around the
-    // fog now.
-    const double lead = wait ? static_cast<double>(config->fog_ladder_adopt_frames) : std::max(1.0, lastRungFrames);
-    const double ahead = std::log(kt) + lead * step;
-    const int a = static_cast<int>(std::floor(ahead / lr));
-    const bool upperFirst = ahead - a * lr > 0.5 * lr;
-    const std::array<int, 5> order{upperFirst ? a + 1 : a, upperFirst ? a : a + 1, fogTrend > 0 ? a + 2 : a - 1, m,
-                                   m + 1};
-    for (int c : order)
-      if (rungs.count(c) == 0) {
-        startRung(pose, c);
-        break;
-      }
-  } else if (served && !b.trafficLive && !rungBuilding.valid() && !building.valid() &&
-             rungs.size() < static_cast<std::size_t>(config->fog_ladder_rungs)) {
-    // The tables serve the fog and no traffic lamp goes per pixel (a frame costs a few ms): the
-    // idle cores build the rungs nearest the fog, on both sides, so that the next change of fog
-    // starts on the ladder.
-    const double x = std::log(kt) / lr;  // the fog in rung units
-    int best = m;
-    double bestDistance = std::numeric_limits<double>::infinity();
-    for (int c = m - config->fog_ladder_rungs; c <= m + 1 + config->fog_ladder_rungs; ++c) {
-      const double d = std::abs(static_cast<double>(c) - x);
-      if (rungs.count(c) == 0 && d < bestDistance) {
-        best = c;
-        bestDistance = d;
-      }
+  const bool idle = served && !b.trafficLive;
+  if (bendStep > 0.0) {
+    // The wheel's turns in one direction, and its rate (deg a frame) over the last: a bending
+    // signal that moves in steps holds each angle a few frames between them, so a hold shorter
+    // than kLadderHoldFrames does not end the turn.
+    const double bend = want.bendingDeg;
+    if (frameIndex > 1 && std::abs(bend - lastBend) > 1e-9) {
+      const int trend = bend > lastBend ? 1 : -1;
+      const std::int64_t since = frameIndex - lastBendChange;
+      bendChanging = trend == bendTrend && bendChanging > 0 ? bendChanging + 1 : 1;
+      bendTrend = trend;
+      bendStepPerFrame = (bend - lastBend) / static_cast<double>(std::max<std::int64_t>(1, since));
+      lastBendChange = frameIndex;
+      lastBend = bend;
+    } else if (frameIndex - lastBendChange > kLadderHoldFrames) {
+      bendChanging = 0;
     }
-    // Only within the fog_ladder_rungs nearest rungs (a farther one would be dropped at once).
-    std::size_t nearer = 0;
-    for (const auto& [index, rung] : rungs) nearer += std::abs(static_cast<double>(index) - x) < bestDistance ? 1u : 0u;
-    if (nearer < static_cast<std::size_t>(config->fog_ladder_rungs)) startRung(pose, best);
+    if (frameIndex <= 1) lastBend = bend;
   }
-  // At most fog_ladder_rungs, those furthest from the fog dropped.
-  while (rungs.size() > static_cast<std::size_t>(config->fog_ladder_rungs)) {
-    const auto lowest = rungs.begin();
-    const auto highest = std::prev(rungs.end());
-    rungs.erase(m - lowest->first > highest->first - m ? lowest : highest);
-    ++rungsVersion;
+  bool onLadder = false;
+  if (ladderRatio > 1.0) {
+    // Another fog (its K_t aside), a bending angle beyond the tolerance or other ego lamps on: a
+    // new ladder.
+    const TableKey base = ladderBase(want);
+    if (!rungBaseSet || !rungBase.serves(base, config->bending_tolerance_deg) || lights != rungLights) {
+      if (!rungs.empty()) ++rungsVersion;
+      rungs.clear();
+      rungBase = base;
+      rungLights = lights;
+      rungBaseSet = true;
+    }
+    const double kt = ktOf(want.fog);
+    // ln K_t's change over the last frame, while it changes the same way.
+    double step = 0.0;
+    if (lastKt > 0.0 && std::abs(kt - lastKt) > 1e-6 * kt) {
+      const int trend = kt > lastKt ? 1 : -1;
+      fogChanging = trend == fogTrend ? fogChanging + 1 : 1;
+      fogTrend = trend;
+      step = std::log(kt / lastKt);
+    } else {
+      fogChanging = 0;
+    }
+    lastKt = kt;
+    const double lr = std::log(ladderRatio);
+    const int m = static_cast<int>(std::floor(std::log(kt) / lr));
+    onLadder = rungs.count(m) != 0 && rungs.count(m + 1) != 0;
+    if (!served && onLadder && fogChanging >= 2 && !rungBuilding.valid() && !building.valid()) {
+      // Where the fog will be when this build is taken, at its present rate: fog_ladder_adopt_frames
+      // ahead (lock-step, replay), or as many frames as the last rung took (free-running). The
+      // rungs around that fog first (nearer first), the next one beyond it, then those around the
+      // fog now.
+      const double lead = wait ? static_cast<double>(config->fog_ladder_adopt_frames) : std::max(1.0, lastRungFrames);
+      const double ahead = std::log(kt) + lead * step;
+      const int a = static_cast<int>(std::floor(ahead / lr));
+      const bool upperFirst = ahead - a * lr > 0.5 * lr;
+      const std::array<int, 5> order{upperFirst ? a + 1 : a, upperFirst ? a : a + 1, fogTrend > 0 ? a + 2 : a - 1, m,
+                                     m + 1};
+      for (int c : order)
+        if (rungs.count(c) == 0) {
+          startRung(pose, c);
+          break;
+        }
+    }
+    // While frames are cheap (the tables serve the fog, no traffic lamp goes per pixel): the
+    // idle cores build the rungs nearest the fog, on both sides, so that the next change of fog
+    // starts on the ladder; `count`: among that many nearest (at most fog_ladder_rungs: those
+    // kept). First the fog's three nearest (the two around it and the next: a fog that starts
+    // to change off its last rung reads from the first frame on), then the bending ladder's two
+    // (a wheel that starts to turn needs them at once), then the rest of each.
+    auto fogIdle = [&](int count) {
+      if (!idle || rungBuilding.valid() || building.valid() ||
+          rungs.size() >= static_cast<std::size_t>(config->fog_ladder_rungs))
+        return;
+      const double x = std::log(kt) / lr;  // the fog in rung units
+      int best = m;
+      double bestDistance = std::numeric_limits<double>::infinity();
+      for (int c = m - count; c <= m + 1 + count; ++c) {
+        const double d = std::abs(static_cast<double>(c) - x);
+        if (rungs.count(c) == 0 && d < bestDistance) {
+          best = c;
+          bestDistance = d;
+        }
+      }
+      // Only within the `count` nearest rungs (a farther one would be dropped at once).
+      std::size_t nearer = 0;
+      for (const auto& [index, rung] : rungs) nearer += std::abs(static_cast<double>(index) - x) < bestDistance ? 1u : 0u;
+      if (nearer < static_cast<std::size_t>(count)) startRung(pose, best);
+    };
+    fogIdle(std::min(3, config->fog_ladder_rungs));
+    if (idle && !rungBuilding.valid() && !building.valid())
+      updateBendingLadder(pose, want, served, wait, true, 2, lights, b);
+    fogIdle(config->fog_ladder_rungs);
+    // At most fog_ladder_rungs, those furthest from the fog dropped.
+    while (rungs.size() > static_cast<std::size_t>(config->fog_ladder_rungs)) {
+      const auto lowest = rungs.begin();
+      const auto highest = std::prev(rungs.end());
+      rungs.erase(m - lowest->first > highest->first - m ? lowest : highest);
+      ++rungsVersion;
+    }
   }
-  if (served || !onLadder) return Ok{};
+  // The bending ladder: a rung started when the fog ladder started none; at most
+  // bending_ladder_rungs kept, those furthest from the angle dropped.
+  updateBendingLadder(pose, want, served, wait, !rungBuilding.valid() && !building.valid(),
+                      config->bending_ladder_rungs, lights, b);
+  if (bendStep > 0.0)
+    while (bendRungs.size() > static_cast<std::size_t>(config->bending_ladder_rungs)) {
+      // From the middle of the angle's interval [j, j + 1], as the idle order counts them.
+      const double x = std::floor(want.bendingDeg / bendStep) + 0.5;
+      const auto lowest = bendRungs.begin();
+      const auto highest = std::prev(bendRungs.end());
+      bendRungs.erase(x - lowest->first > highest->first - x ? lowest : highest);
+      ++rungsVersion;
+    }
+  if (served) return Ok{};
+  if (onLadder) {
+    b.bendingLadder = false;  // the fog ladder first: its rungs are the frame's own bending
+  } else if (!b.bendingLadder) {
+    return Ok{};
+  }
   b.ladder = true;
   // The slot keeps its copy of the set while the set is the same (a copy per change, not per
-  // frame): every change of `rungs` counts rungsVersion up, and a set is never empty here.
+  // frame): every change of `rungs` or `bendRungs` counts rungsVersion up. Both ladders' rungs:
+  // the evaluator reads those that serve the frame.
   if (b.rungs.empty() || b.rungsVersion != rungsVersion) {
     b.rungs.clear();
     for (const auto& [index, rung] : rungs) b.rungs.push_back(rung);
+    for (const auto& [index, rung] : bendRungs) b.rungs.push_back(rung);
     b.rungsVersion = rungsVersion;
   }
   if (!tablesBuilt) {
     // No tables' evaluator yet (the fog has changed since the start): one without tables of its
     // own, which reads the rungs (its lamps and pool; cheap).
-    auto e = AirlightImageEvaluator::build(sceneFor(pose, rungBase), method, {}, config->threads, fast);
+    auto e = AirlightImageEvaluator::build(sceneFor(pose, want), method, {}, config->threads, fast);
     if (!e) return e.error();
     b.adopt = std::make_unique<AirlightImageEvaluator>(std::move(e).value());
     tablesBuilt = true;
@@ -668,15 +767,82 @@ Status ChannelRenderer::Impl::updateLadder(const VehiclePose& pose, const TableK
   return Ok{};
 }
 
+void ChannelRenderer::Impl::updateBendingLadder(const VehiclePose& pose, const TableKey& want, bool served,
+                                                bool wait, bool mayStart, int idleRungs, std::uint32_t lights,
+                                                Begun& b) {
+  // Rungs at bending j · bendStep for the fog as it is (exactly: a fog that changes takes the fog
+  // ladder, and bending rungs of another fog are dropped). Built like fog rungs: while tables
+  // serve the angle and frames are cheap, the two around it, then the nearest on both sides up
+  // to bending_ladder_rungs; while the angle keeps turning on the ladder (two frames in a row or
+  // more), around where it heads. A frame between two rungs reads both, each through its turn
+  // (AirlightImageEvaluator::setFogLadder's maxBendingDeg; docs/airlight.md, "Bending on the
+  // ladder"), and shows its own angle.
+  if (bendStep <= 0.0) return;
+  TableKey base = want;
+  base.bendingDeg = 0.0;
+  if (!bendBaseSet || !bendBase.sameFog(base) || lights != bendLights) {
+    if (!bendRungs.empty()) ++rungsVersion;
+    bendRungs.clear();
+    bendBase = base;
+    bendLights = lights;
+    bendBaseSet = true;
+  }
+  const double bend = want.bendingDeg;
+  const double x = bend / bendStep;  // the angle in rung units
+  const int j = static_cast<int>(std::floor(x));
+  const bool exact = std::abs(x - j) < 1e-9;
+  const bool onBend = bendRungs.count(j) != 0 && (exact || bendRungs.count(j + 1) != 0);
+  if (mayStart && !rungBuilding.valid() && !building.valid()) {
+    if (!served && bendChanging >= 2) {
+      // Where the wheel will be when this build is taken, at its present rate (as fog rungs).
+      // Also while frames go per pixel (unlike the fog ladder): the wheel sweeps a few degrees
+      // back and forth, so the rungs it heads for are read again on its way back.
+      const double lead = wait ? static_cast<double>(config->fog_ladder_adopt_frames) : std::max(1.0, lastRungFrames);
+      const double ahead = (bend + lead * bendStepPerFrame) / bendStep;
+      const int a = static_cast<int>(std::floor(ahead));
+      const std::array<int, 4> order{a, a + 1, bendTrend > 0 ? a + 2 : a - 1, j};
+      for (int c : order)
+        if (bendRungs.count(c) == 0) {
+          startBendRung(pose, c);
+          break;
+        }
+    } else if (served && !b.trafficLive) {
+      // Idle: the first missing of j, j + 1, j − 1, j + 2, j − 2, … (the two around the angle,
+      // then outwards on both sides), among the first idleRungs of them (at most
+      // bending_ladder_rungs: those the eviction keeps).
+      for (int n = 0; n < std::min(idleRungs, config->bending_ladder_rungs); ++n) {
+        const int c = n % 2 == 0 ? j - n / 2 : j + (n + 1) / 2;
+        if (bendRungs.count(c) == 0) {
+          startBendRung(pose, c);
+          break;
+        }
+      }
+    }
+  }
+  b.bendingLadder = !served && onBend;
+}
+
+void ChannelRenderer::Impl::startBendRung(const VehiclePose& pose, int index) {
+  TableKey key = bendBase;
+  key.bendingDeg = bendStep * index;
+  startRungBuild(pose, key, bendBase, bendLights, index, true);
+}
+
 void ChannelRenderer::Impl::startRung(const VehiclePose& pose, int index) {
   TableKey key = rungBase;
   key.fog.extinction_per_m = static_cast<float>(std::pow(ladderRatio, index));
+  startRungBuild(pose, key, rungBase, rungLights, index, false);
+}
+
+void ChannelRenderer::Impl::startRungBuild(const VehiclePose& pose, const TableKey& key, const TableKey& base,
+                                           std::uint32_t lights, int index, bool bending) {
   rungBuildIndex = index;
-  rungBuildBase = rungBase;
-  rungBuildLights = rungLights;
+  rungBuildBending = bending;
+  rungBuildBase = base;
+  rungBuildLights = lights;
   rungStart = frameIndex;
   Scene scene = sceneFor(pose, key);
-  std::vector<char> on = lampsOn(rungLights, scene.lamps.size());
+  std::vector<char> on = lampsOn(lights, scene.lamps.size());
   rungBuilding = std::async(std::launch::async, [this, scene = std::move(scene), on = std::move(on)] {
     return AirlightImageEvaluator::buildFogTables(scene, fast, std::make_shared<ThreadPool>(config->threads), on);
   });
@@ -711,7 +877,7 @@ Status ChannelRenderer::Impl::setEvaluatorLamps(const Begun& b) {
   // The ladder's rungs (a new set), and the frame's fog: the tables' own, or between two rungs.
   if (b.ladder && b.rungsVersion != evalRungsVersion) {
     // Rungs' K_t are floats (ipc::Environment): a little slack on the ratio.
-    eval->setFogLadder(b.rungs, ladderRatio * (1.0 + 1e-6));
+    eval->setFogLadder(b.rungs, ladderRatio * (1.0 + 1e-6), bendStep * (1.0 + 1e-6));
     evalRungsVersion = b.rungsVersion;
   }
   if (Status s = eval->setFog(b.scene.fog); !s) return s;
@@ -795,6 +961,7 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
       spdlog::warn("render: the fog ladder's rungs did not fit {} frame(s); those went per pixel", ladderMisses);
   }
   out.fog_rungs = 0;
+  out.bending_rungs = 0;
   if (perPixel) {
     // Tables pending ([render] pending_tables = "per-pixel"): the world and ego lamps that are
     // on, the ego's as lamps that move relative to the eye (the pencil, maps or per ray:
@@ -815,6 +982,7 @@ Status ChannelRenderer::Impl::renderAirlight(Begun& b, RenderedFrame& out) {
     // World and ego lamps through the tables (lamps that are off switched off in the evaluator).
     eval->evaluate(scene, *surf, subsampling, air);
     out.fog_rungs = air.fog_rungs;
+    out.bending_rungs = air.bending_rungs;
   }
   out.airlight_evaluated = air.evaluated;
   if (!traffic.lamps.empty()) {
@@ -948,9 +1116,10 @@ Status ChannelRenderer::Impl::beginFrame(const ipc::SimSnapshot& state, ipc::Clo
   // frame shows theirs, the evaluator's lamps keeping the poses its tables were built for.)
   b.key = gpuAirlight || (perPixelPending && !b.useTables) ? want : current;
   if (b.ladder) {
-    // Between two rungs: the wanted fog, the rungs' bending (within the tolerance of the wanted).
+    // Between two rungs: the wanted fog, and the fog rungs' bending (within the tolerance of the
+    // wanted) or, between two bending rungs, the wanted bending.
     b.key = want;
-    b.key.bendingDeg = rungBase.bendingDeg;
+    if (!b.bendingLadder) b.key.bendingDeg = rungBase.bendingDeg;
   }
 
   // 2. The frame's scenes: `scene` = world lamps + the whole ego rig for the tables' fog and

@@ -62,6 +62,8 @@ constexpr std::array kRenderKeys{
     KeySpec{"fog_ladder_ratio"},
     KeySpec{"fog_ladder_rungs"},
     KeySpec{"fog_ladder_adopt_frames"},
+    KeySpec{"bending_ladder_step_deg"},
+    KeySpec{"bending_ladder_rungs"},
     KeySpec{"overlap_frames"},
 };
 constexpr std::array kTimingKeys{
@@ -268,6 +270,11 @@ void applyRoot(ServiceConfig& c, const toml::table& root, const std::string& nam
     c.fog_ladder_rungs = static_cast<int>(s.integer("fog_ladder_rungs", 2, 64, c.fog_ladder_rungs));
     c.fog_ladder_adopt_frames =
         static_cast<int>(s.integer("fog_ladder_adopt_frames", 1, 100000, c.fog_ladder_adopt_frames));
+    c.bending_ladder_step_deg = s.number("bending_ladder_step_deg", Range{0.0, 5.0}, c.bending_ladder_step_deg);
+    if (c.bending_ladder_step_deg != 0.0 && c.bending_ladder_step_deg < 0.1)
+      s.failAt(*s.find("bending_ladder_step_deg"), "bending_ladder_step_deg",
+               "expected 0 (off) or a step in [0.1, 5] degrees, found " + std::to_string(c.bending_ladder_step_deg));
+    c.bending_ladder_rungs = static_cast<int>(s.integer("bending_ladder_rungs", 2, 64, c.bending_ladder_rungs));
     const std::array<std::string_view, 3> overlap{"auto", "on", "off"};
     c.overlap_frames = s.choice("overlap_frames", overlap, c.overlap_frames);
   }
@@ -573,6 +580,8 @@ std::string toToml(const ServiceConfig& c) {
     << "\npending_tables = " << quoted(c.pending_tables) << "\ntable_adopt_frames = " << c.table_adopt_frames
     << "\nfog_ladder_ratio = " << num(c.fog_ladder_ratio) << "\nfog_ladder_rungs = " << c.fog_ladder_rungs
     << "\nfog_ladder_adopt_frames = " << c.fog_ladder_adopt_frames
+    << "\nbending_ladder_step_deg = " << num(c.bending_ladder_step_deg)
+    << "\nbending_ladder_rungs = " << c.bending_ladder_rungs
     << "\noverlap_frames = " << quoted(c.overlap_frames) << "\nairlight = " << quoted(std::string(toString(c.effects.render.airlight)))
     << "\ngpu_pieces = " << c.effects.render.gpu_pieces << "\n";
   o << "\n[glow]\nenabled = " << flag(c.effects.glow.enabled) << "\nmodel = \"" << toString(c.effects.glow.model)

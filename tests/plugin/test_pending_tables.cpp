@@ -284,6 +284,71 @@ TEST(PendingTables, AFogRampReadsTheFogLadder) {
   }
 }
 
+// The bending ladder ([render] bending_ladder_step_deg, 1° by default; docs/service.md, "The
+// bending ladder"): while the 0° tables serve, the idle frames build bending rungs around 0°
+// (one a frame here: fog_ladder_adopt_frames = 1), then fog rungs; a wheel that then turns
+// 0.1° further every frame reads the two rungs around each frame's angle, each through its turn,
+// builds the next rung ahead and is never pending; its last frame is within 1 % (p95) of a
+// renderer whose low beam is mounted at that angle; the run repeats byte for byte (lock-step).
+TEST(PendingTables, ATurningWheelReadsTheBendingLadder) {
+  constexpr int kSteady = 12, kTurn = 16;
+  constexpr float kRate = 0.1f;  // deg a frame
+  auto bendingCfg = [](std::vector<std::string> extra) {
+    extra.push_back("render.table_adopt_frames=1");
+    extra.push_back("render.fog_ladder_adopt_frames=1");
+    ServiceConfig c = configWith(std::move(extra));
+    c.ego.lamps.at(0).bending = true;
+    return c;
+  };
+  auto run = [&](const ServiceConfig& cfg, std::vector<RenderedFrame>& frames) {
+    auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);
+    ASSERT_TRUE(r) << r.error().message;
+    frames.assign(kSteady + kTurn, RenderedFrame{});
+    for (int k = 0; k < kSteady + kTurn; ++k) {
+      ipc::SimSnapshot s = stateWith(0.0f);
+      s.lamps.value.bending_deg = k < kSteady ? 0.0f : kRate * static_cast<float>(k - kSteady + 1);
+      ASSERT_TRUE((*r)->render(s, ipc::Clock::now(), true, frames[static_cast<std::size_t>(k)]));
+    }
+  };
+  std::vector<RenderedFrame> a, b, off;
+  run(bendingCfg({}), a);
+  int turned = 0;
+  for (int k = kSteady; k < kSteady + kTurn; ++k) {
+    const RenderedFrame& f = a[static_cast<std::size_t>(k)];
+    EXPECT_FALSE(f.pending) << "turning frame " << k - kSteady;
+    turned += f.bending_rungs == 2 ? 1 : 0;
+  }
+  EXPECT_GE(turned, kTurn - 2);  // frames on a rung's own angle read it alone
+  EXPECT_EQ(a[kSteady - 1].bending_rungs, 0);  // the steady frames read the 0° tables
+  // Without the ladder the same frames go per pixel.
+  run(bendingCfg({"render.bending_ladder_step_deg=0"}), off);
+  for (int k = kSteady; k < kSteady + kTurn; ++k) EXPECT_TRUE(off[static_cast<std::size_t>(k)].pending);
+
+  // The last frame against the lamp mounted at its angle (tables built for it).
+  const float last = kRate * static_cast<float>(kTurn);
+  ServiceConfig turnedCfg = configWith({"render.table_adopt_frames=1"});
+  SceneLamp& l = turnedCfg.ego.lamps.at(0).lamp;
+  l.lamp.worldFromLamp = worldFromYawPitchRoll(radians(static_cast<double>(last)), 0.0, 0.0) * l.lamp.worldFromLamp;
+  auto rt = ChannelRenderer::create(turnedCfg, 0, worldOf(turnedCfg), nullptr);
+  ASSERT_TRUE(rt) << rt.error().message;
+  RenderedFrame h;
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE((*rt)->render(stateWith(0.0f), ipc::Clock::now(), true, h));
+  ASSERT_FALSE(h.pending);
+  const double p95 = p95Relative(luminance(a.back().layers.airlight), luminance(h.layers.airlight));
+  const double p95Steady = p95Relative(luminance(a[kSteady - 1].layers.airlight), luminance(h.layers.airlight));
+  std::printf("wheel turning 0 -> %.1f deg at %.1f deg a frame: %d of %d frames from two turned rungs; the last against "
+              "the lamp mounted at %.1f deg p95 %.2e (the 0 deg frame: %.2e)\n",
+              static_cast<double>(last), static_cast<double>(kRate), turned, kTurn, static_cast<double>(last), p95,
+              p95Steady);
+  EXPECT_LT(p95, 0.01);
+  EXPECT_GT(p95Steady, 5.0 * p95);
+  run(bendingCfg({}), b);
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_EQ(a[k].layers.airlight, b[k].layers.airlight) << "frame " << k;
+    EXPECT_EQ(a[k].packed, b[k].packed) << "frame " << k;
+  }
+}
+
 TEST(PendingTables, PreviousWaitsForTheFirstTables) {
   const ServiceConfig cfg = configWith({"render.pending_tables=\"previous\""});
   auto r = ChannelRenderer::create(cfg, 0, worldOf(cfg), nullptr);

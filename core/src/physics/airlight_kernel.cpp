@@ -101,12 +101,6 @@ PsiBasis::PsiBasis() {
   }
 }
 
-void PsiBasis::eval(int j, double psi, double b[4]) const noexcept {
-  const double s = (psi - knots_[static_cast<std::size_t>(j)]) * invStep_[static_cast<std::size_t>(j)];
-  const double* c = poly_.data() + static_cast<std::size_t>(j) * 16;
-  for (int i = 0; i < 4; ++i, c += 4) b[i] = c[0] + s * (c[1] + s * (c[2] + s * c[3]));
-}
-
 void PsiBasis::combine(int j, const float w[4], double g[4]) const noexcept {
   const double* c = poly_.data() + static_cast<std::size_t>(j) * 16;
   for (int p = 0; p < 4; ++p) g[p] = 0.0;

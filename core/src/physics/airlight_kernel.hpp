@@ -66,13 +66,15 @@ class PsiBasis {
     return intervalSearch(psi);
   }
   /// The values at ψ of the four functions j, j + 1, j + 2, j + 3 that live on interval j.
-  void eval(int j, double psi, double b[4]) const noexcept;
+  /// Inline: the pencil's spoke projection calls it three times per piece and interval.
+  void eval(int j, double psi, double b[4]) const noexcept {
+    const double s = local(j, psi);
+    const double* c = poly_.data() + static_cast<std::size_t>(j) * 16;
+    for (int i = 0; i < 4; ++i, c += 4) b[i] = c[0] + s * (c[1] + s * (c[2] + s * c[3]));
+  }
   /// Σ_i w[i] β_{j+i} on interval j as one cubic in s = (ψ − t_j)/(t_{j+1} − t_j):
   /// g[p] the coefficient of s^p.
   void combine(int j, const float w[4], double g[4]) const noexcept;
-  /// The four cubics that live on interval j, in s = (ψ − t_j)/(t_{j+1} − t_j): element
-  /// 4 i + p is the coefficient of s^p of function j + i (eval()'s, for callers that inline it).
-  [[nodiscard]] const double* polynomials(int j) const noexcept { return poly_.data() + static_cast<std::size_t>(j) * 16; }
   /// s of ψ on interval j (for combine()'s cubic).
   [[nodiscard]] double local(int j, double psi) const noexcept {
     return (psi - knots_[static_cast<std::size_t>(j)]) * invStep_[static_cast<std::size_t>(j)];

@@ -446,7 +446,6 @@ void PencilAirlight::projectSpoke(int s) const {
     atKnot[static_cast<std::size_t>(j)] = static_cast<std::uint32_t>(first);
     // The four sums in locals: accumulated through `per` (doubles, as the pieces' fields) the
     // compiler reloaded the piece after every store.
-    const double* poly = basis.polynomials(j);
     double acc[4] = {0.0, 0.0, 0.0, 0.0};
     for (std::size_t q = first; q < pcs.size() && pcs[q].a < b; ++q) {
       const Piece pc = pcs[q];
@@ -454,12 +453,11 @@ void PencilAirlight::projectSpoke(int s) const {
       if (!(sb > sa)) continue;
       const double half = 0.5 * (sb - sa), mid = sa + half;
       for (int g = 0; g < 3; ++g) {
-        const double x = mid + half * kGL3x[g], u = x - pc.m, sl = basis.local(j, x);
+        const double x = mid + half * kGL3x[g], u = x - pc.m;
         const double wi = half * kGL3w[g] * (pc.i0 + u * (pc.c1 + u * pc.c2));
-        for (int i = 0; i < 4; ++i) {
-          const double* c = poly + 4 * i;
-          acc[i] += wi * (c[0] + sl * (c[1] + sl * (c[2] + sl * c[3])));
-        }
+        double bv[4];
+        basis.eval(j, x, bv);
+        for (int i = 0; i < 4; ++i) acc[i] += wi * bv[i];
       }
     }
     for (int i = 0; i < 4; ++i) per[static_cast<std::size_t>(j) * 4 + static_cast<std::size_t>(i)] = acc[i];

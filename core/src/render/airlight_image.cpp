@@ -2081,6 +2081,8 @@ void locateLampImages(State& st, const Lamps& lamps, const CameraFrame& cf) {
   for (const std::vector<std::size_t>* group : {&st.isoLamps, &st.viewLamps, &st.rayLamps})
     for (std::size_t li : *group)
       if (st.enabled[li]) locate(li);
+  // Not pencilOn(), deliberately: a lamp on and not culled whose integrator could not be built
+  // this frame keeps the guard around its image all the same.
   for (std::size_t q = 0; q < st.pencilLamps.size(); ++q)
     if (st.enabled[st.pencilLamps[q]] && !st.culled[q]) locate(st.pencilLamps[q]);
 }

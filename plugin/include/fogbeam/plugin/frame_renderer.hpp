@@ -121,6 +121,9 @@ struct RenderedFrame {
   /// 0 = the tables built for the frame's fog (or none: pending, GPU airlight), 1 = a rung at its
   /// K_t, 2 = the two around it.
   int fog_rungs = 0;
+  /// Rungs of the bending ladder read per fog, each through its turn ([render]
+  /// bending_ladder_step_deg): 0 = none, 2 = the two around the frame's bending angle.
+  int bending_rungs = 0;
   /// The host depth frame the frame was rendered on (HostView::frame); 0 = the channel's own view.
   std::uint64_t host_frame = 0;
   /// rgba8-srgb: the EV the frame was packed at (the channel's exposure_ev, or its automatic

@@ -120,6 +120,14 @@ struct ServiceConfig {
   /// there if it is not done), as table_adopt_frames for whole builds; shorter, since a ramp
   /// crosses a rung every few tenths of a second.
   int fog_ladder_adopt_frames = 20;
+  /// The bending ladder (pending_tables = "per-pixel"; docs/service.md, "The bending ladder"):
+  /// for an ego rig with bending lamps, their view tables built in the background at bending
+  /// angles j · bending_ladder_step_deg (rungs, for the fog as it is), around the angle while
+  /// tables serve it and where it turns while it turns; a frame whose angle lies between two
+  /// rungs reads both, each through its turn, instead of going per pixel. 0 = off; else
+  /// [0.1, 5] degrees. At most bending_ladder_rungs rungs are kept (those nearest the angle).
+  double bending_ladder_step_deg = 1.0;
+  int bending_ladder_rungs = 12;
   /// Frame overlap (docs/service.md, "Overlapped frames"): the surface pass of the next frame
   /// beside the airlight, glow, glare and composite of the previous one, on a second thread.
   /// "auto" (on where cores allow: overlapsFrames in frame_pipeline.hpp), "on" or "off". Frames
