@@ -293,8 +293,9 @@ struct ChannelRenderer::Impl {
   bool bendBaseSet = false;
   std::uint32_t bendLights = 0;
   bool rungBuildBending = false;
-  /// Frames in a row whose bending angle differs from the previous frame's, its direction and
-  /// last step (deg): rungs are built ahead of a wheel that keeps turning.
+  /// Changes of the bending angle in one direction (holds of up to kLadderHoldFrames between
+  /// them allowed), that direction and the rate over the last (deg a frame): rungs are built
+  /// ahead of a wheel that keeps turning.
   int bendChanging = 0, bendTrend = 0;
   double lastBend = 0.0, bendStepPerFrame = 0.0;
   std::int64_t lastBendChange = 0;  ///< frameIndex of the last change of angle
@@ -771,12 +772,12 @@ void ChannelRenderer::Impl::updateBendingLadder(const VehiclePose& pose, const T
                                                 bool wait, bool mayStart, int idleRungs, std::uint32_t lights,
                                                 Begun& b) {
   // Rungs at bending j · bendStep for the fog as it is (exactly: a fog that changes takes the fog
-  // ladder, and bending rungs of another fog are dropped). Built like fog rungs: while tables
-  // serve the angle and frames are cheap, the two around it, then the nearest on both sides up
-  // to bending_ladder_rungs; while the angle keeps turning on the ladder (two frames in a row or
-  // more), around where it heads. A frame between two rungs reads both, each through its turn
-  // (AirlightImageEvaluator::setFogLadder's maxBendingDeg; docs/airlight.md, "Bending on the
-  // ladder"), and shows its own angle.
+  // ladder, and bending rungs of another fog are dropped), within ±bending_max_deg (the angles a
+  // frame can have) and a step. Built like fog rungs: while tables serve the angle and frames
+  // are cheap, the two around it, then the nearest on both sides up to bending_ladder_rungs;
+  // while the wheel keeps turning (bendChanging ≥ 2), around where it heads. A frame between two
+  // rungs reads both, each through its turn (AirlightImageEvaluator::setFogLadder's
+  // maxBendingDeg; docs/airlight.md, "Bending on the ladder"), and shows its own angle.
   if (bendStep <= 0.0) return;
   TableKey base = want;
   base.bendingDeg = 0.0;
@@ -792,6 +793,8 @@ void ChannelRenderer::Impl::updateBendingLadder(const VehiclePose& pose, const T
   const int j = static_cast<int>(std::floor(x));
   const bool exact = std::abs(x - j) < 1e-9;
   const bool onBend = bendRungs.count(j) != 0 && (exact || bendRungs.count(j + 1) != 0);
+  const double reach = config->bending_max_deg + bendStep;
+  auto useful = [&](int c) { return bendRungs.count(c) == 0 && std::abs(bendStep * c) <= reach; };
   if (mayStart && !rungBuilding.valid() && !building.valid()) {
     if (!served && bendChanging >= 2) {
       // Where the wheel will be when this build is taken, at its present rate (as fog rungs).
@@ -802,7 +805,7 @@ void ChannelRenderer::Impl::updateBendingLadder(const VehiclePose& pose, const T
       const int a = static_cast<int>(std::floor(ahead));
       const std::array<int, 4> order{a, a + 1, bendTrend > 0 ? a + 2 : a - 1, j};
       for (int c : order)
-        if (bendRungs.count(c) == 0) {
+        if (useful(c)) {
           startBendRung(pose, c);
           break;
         }
@@ -812,7 +815,7 @@ void ChannelRenderer::Impl::updateBendingLadder(const VehiclePose& pose, const T
       // bending_ladder_rungs: those the eviction keeps).
       for (int n = 0; n < std::min(idleRungs, config->bending_ladder_rungs); ++n) {
         const int c = n % 2 == 0 ? j - n / 2 : j + (n + 1) / 2;
-        if (bendRungs.count(c) == 0) {
+        if (useful(c)) {
           startBendRung(pose, c);
           break;
         }
